@@ -1,0 +1,445 @@
+"""Universal Decoupled Policy Optimisation (UDPO), the pre-training stage of PILoT (paper section 3.1)."""
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any, ClassVar, TypeVar
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.noise import ActionNoise
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
+from stable_baselines3.common.utils import FloatSchedule, get_parameters_by_name, polyak_update, update_learning_rate
+from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
+from torch import nn
+from torch.nn import functional as F
+
+from sb3_pilot.udpo.policies import (
+    InverseDynamics,
+    MlpPolicy,
+    MultiInputPolicy,
+    StatePlanner,
+    UDPOPolicy,
+    check_observation_space,
+    gaussian_log_prob,
+)
+
+SelfUDPO = TypeVar("SelfUDPO", bound="UDPO")
+
+
+@contextmanager
+def frozen(module: nn.Module) -> Iterator[None]:
+    """Build graphs through ``module`` without computing gradients for its parameters (they stay untouched)."""
+    params = [param for param in module.parameters() if param.requires_grad]
+    for param in params:
+        param.requires_grad_(False)
+    try:
+        yield
+    finally:
+        for param in params:
+            param.requires_grad_(True)
+
+
+class UDPO(OffPolicyAlgorithm):
+    """
+    Universal Decoupled Policy Optimisation (UDPO), PILoT's pre-training algorithm
+    (Planning Immediate Landmarks of Targets, Liu et al., ICLR 2023, section 3.1).
+
+    The goal-conditioned policy is decoupled as ``pi(a|s,g) = E_{s' ~ h(s'|s,g)} [I(a|s,s')]``:
+    a state planner ``h`` (``policy.state_planner``) and an inverse dynamics model ``I``
+    (``policy.inverse_dynamics``). Twin Q critics and the entropy temperature are trained as in SAC.
+
+    - ``I`` is fitted by maximum likelihood on buffer transitions ``(s, s', a)`` every ``inverse_dynamics_interval``
+      gradient steps (``Delta``) and held fixed in between: the actor loss reaches only the planner.
+    - ``h`` minimises the SAC actor loss through the frozen ``I`` plus ``planner_coef`` (``lambda``) times the negative
+      log-likelihood of the real transition ``s -> s'`` of the sampled buffer transitions.
+    - The log-probability of the entropy terms is ``log I(a | s, s')`` at the sampled plan ``s'`` (as in DePO).
+
+    The planner state ``s`` is ``observation`` concatenated with ``achieved_goal`` for Dict goal observations, so the
+    goal mapping ``phi`` is the achieved-goal slice of the state (``policy.goal_slice``); with a Box observation
+    (``"MlpPolicy"``) the planner is goal-free (DePO's RL setting). Works with ``HerReplayBuffer``.
+
+    Logged: ``train/critic_loss``, ``train/actor_loss``, ``train/planner_nll``, ``train/inverse_dynamics_loss``,
+    ``train/ent_coef`` (+ ``train/ent_coef_loss``) and ``rollout/plan_error``: the mean squared error, per state
+    dimension, between the planned next state that produced each action and the state actually reached (in the
+    policy's input space), i.e. the paper's "pred-real-mse".
+
+    :param policy: The policy model to use (``"MultiInputPolicy"`` for Dict goal envs, ``"MlpPolicy"``, or a class)
+    :param env: The environment to learn from (if registered in Gym, can be str)
+    :param learning_rate: learning rate of the critics and the entropy coefficient (paper: Q learning rate);
+        it can be a function of the current progress remaining (from 1 to 0)
+    :param buffer_size: size of the replay buffer
+    :param learning_starts: how many steps of the model to collect transitions for before learning starts
+    :param batch_size: Minibatch size for each gradient update
+    :param tau: the soft update coefficient ("Polyak update", between 0 and 1)
+    :param gamma: the discount factor
+    :param train_freq: Update the model every ``train_freq`` steps (or a tuple like ``(5, "step")``)
+    :param gradient_steps: How many gradient steps to do after each rollout (-1: as many as env steps)
+    :param action_noise: the action noise type (None by default)
+    :param replay_buffer_class: Replay buffer class to use (for instance ``HerReplayBuffer``)
+    :param replay_buffer_kwargs: Keyword arguments to pass to the replay buffer on creation
+    :param optimize_memory_usage: Enable a memory efficient variant of the replay buffer
+    :param ent_coef: Entropy regularization coefficient, ``'auto'`` (or ``'auto_0.1'``) to learn it
+    :param target_update_interval: update the target network every ``target_update_interval`` gradient steps
+    :param target_entropy: target entropy when learning ``ent_coef`` (``'auto'``: ``-dim(action)``)
+    :param planner_coef: ``lambda``, weight of the planner's negative log-likelihood of real transitions
+        (paper default 1e-2)
+    :param inverse_dynamics_interval: ``Delta``, number of gradient steps between two refits of the inverse dynamics
+        (paper default 1500, 200 for Fetch)
+    :param inverse_dynamics_gradient_steps: supervised gradient steps of each refit of the inverse dynamics
+    :param planner_learning_rate: learning rate of the state planner (paper: policy learning rate);
+        None uses ``learning_rate``
+    :param inverse_dynamics_learning_rate: learning rate of the inverse dynamics (paper: 1e-4);
+        None uses ``learning_rate``
+    :param stats_window_size: Window size for the rollout logging
+    :param tensorboard_log: the log location for tensorboard (if None, no logging)
+    :param policy_kwargs: additional arguments to be passed to the policy on creation
+    :param verbose: Verbosity level: 0 no output, 1 info, 2 debug
+    :param seed: Seed for the pseudo random generators
+    :param device: Device (cpu, cuda, ...) on which the code should be run
+    :param _init_setup_model: Whether or not to build the network at the creation of the instance
+    """
+
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
+        "MlpPolicy": MlpPolicy,
+        "MultiInputPolicy": MultiInputPolicy,
+    }
+    policy: UDPOPolicy
+    state_planner: StatePlanner
+    inverse_dynamics: InverseDynamics
+
+    def __init__(
+        self,
+        policy: str | type[UDPOPolicy],
+        env: GymEnv | str,
+        learning_rate: float | Schedule = 3e-4,
+        buffer_size: int = 1_000_000,
+        learning_starts: int = 100,
+        batch_size: int = 256,
+        tau: float = 0.005,
+        gamma: float = 0.99,
+        train_freq: int | tuple[int, str] = 1,
+        gradient_steps: int = 1,
+        action_noise: ActionNoise | None = None,
+        replay_buffer_class: type[ReplayBuffer] | None = None,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        optimize_memory_usage: bool = False,
+        ent_coef: str | float = "auto",
+        target_update_interval: int = 1,
+        target_entropy: str | float = "auto",
+        planner_coef: float = 1e-2,
+        inverse_dynamics_interval: int = 1500,
+        inverse_dynamics_gradient_steps: int = 100,
+        planner_learning_rate: float | Schedule | None = None,
+        inverse_dynamics_learning_rate: float | Schedule | None = 1e-4,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        policy_kwargs: dict[str, Any] | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: th.device | str = "auto",
+        _init_setup_model: bool = True,
+    ):
+        if planner_coef < 0:
+            raise ValueError(f"planner_coef (lambda) must be >= 0, got {planner_coef}.")
+        if inverse_dynamics_interval < 1:
+            raise ValueError(f"inverse_dynamics_interval (Delta) must be >= 1 gradient step, got {inverse_dynamics_interval}.")
+        if inverse_dynamics_gradient_steps < 1:
+            raise ValueError(f"inverse_dynamics_gradient_steps must be >= 1, got {inverse_dynamics_gradient_steps}.")
+        super().__init__(
+            policy,
+            env,
+            learning_rate,
+            buffer_size,
+            learning_starts,
+            batch_size,
+            tau,
+            gamma,
+            train_freq,
+            gradient_steps,
+            action_noise,
+            replay_buffer_class=replay_buffer_class,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            optimize_memory_usage=optimize_memory_usage,
+            policy_kwargs=policy_kwargs,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            verbose=verbose,
+            device=device,
+            seed=seed,
+            sde_support=False,
+            supported_action_spaces=(spaces.Box,),
+            support_multi_env=True,
+        )
+        self.target_entropy = target_entropy
+        self.log_ent_coef: th.Tensor | None = None
+        self.ent_coef = ent_coef
+        self.target_update_interval = target_update_interval
+        self.ent_coef_optimizer: th.optim.Adam | None = None
+        self.planner_coef = planner_coef
+        self.inverse_dynamics_interval = inverse_dynamics_interval
+        self.inverse_dynamics_gradient_steps = inverse_dynamics_gradient_steps
+        self.planner_learning_rate = planner_learning_rate
+        self.inverse_dynamics_learning_rate = inverse_dynamics_learning_rate
+        self.freeze_planner = False
+        self._plan_errors: list[float] = []
+
+        if _init_setup_model:
+            self._setup_model()
+
+    def _setup_model(self) -> None:
+        check_observation_space(self.observation_space)
+        uses_her = isinstance(self.replay_buffer_class, type) and issubclass(self.replay_buffer_class, HerReplayBuffer)
+        goal_keys = set(self.observation_space.spaces) if isinstance(self.observation_space, spaces.Dict) else set()
+        if uses_her and not {"achieved_goal", "desired_goal"} <= goal_keys:
+            raise ValueError(
+                "HerReplayBuffer needs a Dict observation with 'achieved_goal' and 'desired_goal' entries "
+                f"(the achieved goal is also the planner's goal mapping phi), got {self.observation_space}."
+            )
+        self.planner_lr_schedule = FloatSchedule(
+            self.learning_rate if self.planner_learning_rate is None else self.planner_learning_rate
+        )
+        self.inverse_dynamics_lr_schedule = FloatSchedule(
+            self.learning_rate if self.inverse_dynamics_learning_rate is None else self.inverse_dynamics_learning_rate
+        )
+        self.policy_kwargs = {
+            **self.policy_kwargs,
+            "planner_lr_schedule": self.planner_lr_schedule,
+            "inverse_dynamics_lr_schedule": self.inverse_dynamics_lr_schedule,
+        }
+        super()._setup_model()
+        self._create_aliases()
+        self.batch_norm_stats = get_parameters_by_name(self.critic, ["running_"])
+        self.batch_norm_stats_target = get_parameters_by_name(self.critic_target, ["running_"])
+        if self.target_entropy == "auto":
+            self.target_entropy = float(-np.prod(self.action_space.shape).astype(np.float32))  # type: ignore[union-attr]
+        else:
+            self.target_entropy = float(self.target_entropy)
+
+        if isinstance(self.ent_coef, str) and self.ent_coef.startswith("auto"):
+            init_value = float(self.ent_coef.split("_")[1]) if "_" in self.ent_coef else 1.0
+            if init_value <= 0.0:
+                raise ValueError(f"The initial value of ent_coef must be > 0, got {init_value}.")
+            self.log_ent_coef = th.log(th.ones(1, device=self.device) * init_value).requires_grad_(True)
+            self.ent_coef_optimizer = th.optim.Adam([self.log_ent_coef], lr=self.lr_schedule(1))
+        else:
+            self.ent_coef_tensor = th.tensor(float(self.ent_coef), device=self.device)
+
+    def _create_aliases(self) -> None:
+        self.state_planner = self.policy.state_planner
+        self.inverse_dynamics = self.policy.inverse_dynamics
+        self.critic = self.policy.critic
+        self.critic_target = self.policy.critic_target
+
+    def train(self, gradient_steps: int, batch_size: int = 64) -> None:
+        self.policy.set_training_mode(True)
+        optimizers = [self.critic.optimizer]
+        if self.ent_coef_optimizer is not None:
+            optimizers.append(self.ent_coef_optimizer)
+        self._update_learning_rate(optimizers)
+        update_learning_rate(self.state_planner.optimizer, self.planner_lr_schedule(self._current_progress_remaining))
+
+        ent_coef_losses, ent_coefs = [], []
+        actor_losses, critic_losses, planner_nlls = [], [], []
+
+        for _ in range(gradient_steps):
+            if self._n_updates % self.inverse_dynamics_interval == 0:
+                self.train_inverse_dynamics(self.inverse_dynamics_gradient_steps, batch_size)
+            self._n_updates += 1
+
+            replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
+            discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
+
+            # Plan and act for s (graph to the planner only) and s' (no graph) in one batched pass
+            batch_obs = _concat_obs(replay_data.observations, replay_data.next_observations)
+            with frozen(self.inverse_dynamics):
+                state, delta_mean, log_std = self.state_planner.distribution_params(batch_obs)
+                planned = state + delta_mean + th.randn_like(delta_mean) * th.exp(log_std)
+                actions, log_prob = self.inverse_dynamics(state, planned)
+            actions_pi, next_actions = actions[:batch_size], actions[batch_size:].detach()
+            log_prob, next_log_prob = log_prob[:batch_size].reshape(-1, 1), log_prob[batch_size:].detach().reshape(-1, 1)
+
+            ent_coef_loss = None
+            if self.ent_coef_optimizer is not None and self.log_ent_coef is not None:
+                ent_coef = th.exp(self.log_ent_coef.detach())
+                ent_coef_loss = -(self.log_ent_coef * (log_prob + self.target_entropy).detach()).mean()
+                ent_coef_losses.append(ent_coef_loss.item())
+            else:
+                ent_coef = self.ent_coef_tensor
+            ent_coefs.append(ent_coef.item())
+
+            if ent_coef_loss is not None and self.ent_coef_optimizer is not None:
+                self.ent_coef_optimizer.zero_grad()
+                ent_coef_loss.backward()
+                self.ent_coef_optimizer.step()
+
+            with th.no_grad():
+                next_q_values = th.cat(self.critic_target(replay_data.next_observations, next_actions), dim=1)
+                next_q_values, _ = th.min(next_q_values, dim=1, keepdim=True)
+                next_q_values = next_q_values - ent_coef * next_log_prob
+                target_q_values = replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_values
+
+            current_q_values = self.critic(replay_data.observations, replay_data.actions)
+            critic_loss = 0.5 * sum(F.mse_loss(current_q, target_q_values) for current_q in current_q_values)
+            assert isinstance(critic_loss, th.Tensor)
+            critic_losses.append(critic_loss.item())
+            self.critic.optimizer.zero_grad()
+            critic_loss.backward()
+            self.critic.optimizer.step()
+
+            # Planner: SAC actor loss through the frozen inverse dynamics + lambda * NLL of the real transition
+            q_values_pi = th.cat(self.critic(replay_data.observations, actions_pi), dim=1)
+            min_qf_pi, _ = th.min(q_values_pi, dim=1, keepdim=True)
+            actor_loss = (ent_coef * log_prob - min_qf_pi).mean()
+            real_next_state = self.state_planner.planner_state(replay_data.next_observations)
+            planner_nll = -gaussian_log_prob(
+                real_next_state - state[:batch_size], delta_mean[:batch_size], log_std[:batch_size]
+            ).mean()
+            actor_losses.append(actor_loss.item())
+            planner_nlls.append(planner_nll.item())
+            if not self.freeze_planner:
+                self.state_planner.optimizer.zero_grad()
+                (actor_loss + self.planner_coef * planner_nll).backward()
+                self.state_planner.optimizer.step()
+
+            if self._n_updates % self.target_update_interval == 0:
+                polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
+                polyak_update(self.batch_norm_stats, self.batch_norm_stats_target, 1.0)
+
+        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
+        self.logger.record("train/ent_coef", np.mean(ent_coefs))
+        self.logger.record("train/actor_loss", np.mean(actor_losses))
+        self.logger.record("train/critic_loss", np.mean(critic_losses))
+        self.logger.record("train/planner_nll", np.mean(planner_nlls))
+        if len(ent_coef_losses) > 0:
+            self.logger.record("train/ent_coef_loss", np.mean(ent_coef_losses))
+
+    def train_inverse_dynamics(self, gradient_steps: int, batch_size: int) -> float:
+        """
+        Refit the inverse dynamics ``I(a | s, s')`` by maximum likelihood on buffer transitions ``(s, s', a)``
+        (paper eq. "inverse-dynamics"). Only ``policy.inverse_dynamics`` changes.
+
+        :param gradient_steps: number of supervised gradient steps
+        :param batch_size: minibatch size
+        :return: mean negative log-likelihood over the steps
+        """
+        self.inverse_dynamics.train(True)
+        update_learning_rate(
+            self.inverse_dynamics.optimizer, self.inverse_dynamics_lr_schedule(self._current_progress_remaining)
+        )
+        losses = th.zeros(gradient_steps, device=self.device)
+        for step in range(gradient_steps):
+            replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
+            with th.no_grad():
+                state = self.state_planner.planner_state(replay_data.observations)
+                next_state = self.state_planner.planner_state(replay_data.next_observations)
+            loss = -self.inverse_dynamics.log_prob(state, next_state, replay_data.actions).mean()
+            self.inverse_dynamics.optimizer.zero_grad()
+            loss.backward()
+            self.inverse_dynamics.optimizer.step()
+            losses[step] = loss.detach()
+        mean_loss = losses.mean().item()
+        self.logger.record("train/inverse_dynamics_loss", mean_loss)
+        return mean_loss
+
+    def _sample_action(
+        self,
+        learning_starts: int,
+        action_noise: ActionNoise | None = None,
+        n_envs: int = 1,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        self.policy.last_planned_state = None
+        return super()._sample_action(learning_starts, action_noise, n_envs)
+
+    def _store_transition(
+        self,
+        replay_buffer: ReplayBuffer,
+        buffer_action: np.ndarray,
+        new_obs: np.ndarray | dict[str, np.ndarray],
+        reward: np.ndarray,
+        dones: np.ndarray,
+        infos: list[dict[str, Any]],
+    ) -> None:
+        planned = self.policy.last_planned_state
+        if planned is not None:
+            reached = self._reached_planner_state(new_obs, dones, infos)
+            self._plan_errors.append(float(np.mean((planned.cpu().numpy() - reached) ** 2)))
+        super()._store_transition(replay_buffer, buffer_action, new_obs, reward, dones, infos)
+
+    def _reached_planner_state(
+        self, new_obs: np.ndarray | dict[str, np.ndarray], dones: np.ndarray, infos: list[dict[str, Any]]
+    ) -> np.ndarray:
+        """Planner state reached by the last step, in the policy's input space (terminal observations at resets)."""
+        keys = [key for key in ("observation", "achieved_goal") if isinstance(new_obs, dict) and key in new_obs]
+
+        def state_of(obs: np.ndarray | dict[str, np.ndarray]) -> np.ndarray:
+            return np.concatenate([obs[key] for key in keys], axis=-1) if keys else np.asarray(obs)  # type: ignore[index]
+
+        reached = state_of(new_obs).astype(np.float32, copy=True)
+        for env_idx, done in enumerate(dones):
+            if done and infos[env_idx].get("terminal_observation") is not None:
+                reached[env_idx] = state_of(infos[env_idx]["terminal_observation"])
+        return reached
+
+    def dump_logs(self) -> None:
+        if self._plan_errors:
+            self.logger.record("rollout/plan_error", float(np.mean(self._plan_errors)))
+            self._plan_errors = []
+        super().dump_logs()
+
+    def predict_next_state(self, observation: np.ndarray | dict[str, np.ndarray], deterministic: bool = True) -> np.ndarray:
+        """
+        The planner's landmark: the next planner state ``s' ~ h(. | s, g)`` for an observation (or a batch).
+
+        :param observation: an observation as the policy sees it (normalised if trained with ``VecNormalize``)
+        :param deterministic: return the planner's mean instead of a sample
+        :return: the planned next state (``observation`` + ``achieved_goal`` for Dict observations)
+        """
+        return self.policy.predict_next_state(observation, deterministic=deterministic)
+
+    def learn(
+        self: SelfUDPO,
+        total_timesteps: int,
+        callback: MaybeCallback = None,
+        log_interval: int = 4,
+        tb_log_name: str = "UDPO",
+        reset_num_timesteps: bool = True,
+        progress_bar: bool = False,
+    ) -> SelfUDPO:
+        return super().learn(
+            total_timesteps=total_timesteps,
+            callback=callback,
+            log_interval=log_interval,
+            tb_log_name=tb_log_name,
+            reset_num_timesteps=reset_num_timesteps,
+            progress_bar=progress_bar,
+        )
+
+    def _excluded_save_params(self) -> list[str]:
+        return [
+            *super()._excluded_save_params(),
+            "state_planner",
+            "inverse_dynamics",
+            "critic",
+            "critic_target",
+            "planner_lr_schedule",
+            "inverse_dynamics_lr_schedule",
+            "_plan_errors",
+        ]
+
+    def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
+        state_dicts = ["policy", "state_planner.optimizer", "inverse_dynamics.optimizer", "critic.optimizer"]
+        if self.ent_coef_optimizer is not None:
+            state_dicts.append("ent_coef_optimizer")
+            return state_dicts, ["log_ent_coef"]
+        return state_dicts, ["ent_coef_tensor"]
+
+
+def _concat_obs(first: th.Tensor | dict[str, th.Tensor], second: th.Tensor | dict[str, th.Tensor]) -> Any:
+    """Stack two observation batches along the batch dimension (Dict observations key by key)."""
+    if isinstance(first, dict):
+        return {key: th.cat([first[key], second[key]]) for key in first}  # type: ignore[index]
+    return th.cat([first, second])
