@@ -171,7 +171,6 @@ class UDPO(OffPolicyAlgorithm):
             device=device,
             seed=seed,
             sde_support=False,
-            supported_action_spaces=(spaces.Box,),
             support_multi_env=True,
         )
         self.target_entropy = target_entropy
@@ -191,6 +190,10 @@ class UDPO(OffPolicyAlgorithm):
             self._setup_model()
 
     def _setup_model(self) -> None:
+        if not isinstance(self.action_space, spaces.Box):
+            raise ValueError(
+                f"UDPO needs a continuous (Box) action space: its inverse dynamics is a squashed Gaussian, got {self.action_space}."
+            )
         check_observation_space(self.observation_space)
         uses_her = isinstance(self.replay_buffer_class, type) and issubclass(self.replay_buffer_class, HerReplayBuffer)
         goal_keys = set(self.observation_space.spaces) if isinstance(self.observation_space, spaces.Dict) else set()

@@ -1,0 +1,269 @@
+"""UDPO: decoupled updates, learning, SB3 plumbing and bad input."""
+
+import csv
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch as th
+from gymnasium import spaces
+from goal_envs import PointGoalEnv
+from stable_baselines3 import HerReplayBuffer
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.evaluation import evaluate_policy
+from stable_baselines3.common.logger import configure
+from stable_baselines3.common.monitor import Monitor
+
+from sb3_pilot import UDPO
+
+FAST_KWARGS = dict(
+    replay_buffer_class=HerReplayBuffer,
+    learning_starts=200,
+    batch_size=64,
+    gamma=0.95,
+    learning_rate=1e-3,
+    inverse_dynamics_interval=100,
+    inverse_dynamics_gradient_steps=20,
+    inverse_dynamics_learning_rate=1e-3,
+    policy_kwargs=dict(net_arch=[32, 32]),
+)
+
+
+def snapshot(module: th.nn.Module) -> dict[str, th.Tensor]:
+    return {name: param.detach().clone() for name, param in module.named_parameters()}
+
+
+def changed(before: dict[str, th.Tensor], module: th.nn.Module) -> dict[str, bool]:
+    return {name: not th.equal(before[name], param) for name, param in module.named_parameters()}
+
+
+def success_rate(model: UDPO, n_episodes: int = 30, seed: int = 1234) -> float:
+    env = PointGoalEnv()
+    successes = []
+    for episode in range(n_episodes):
+        obs, _ = env.reset(seed=seed + episode)
+        done, info = False, {}
+        while not done:
+            action, _ = model.predict(obs, deterministic=True)
+            obs, _, terminated, truncated, info = env.step(action)
+            done = terminated or truncated
+        successes.append(info["is_success"])
+    return float(np.mean(successes))
+
+
+@pytest.fixture(scope="module")
+def filled_model() -> UDPO:
+    """A model whose buffer holds random transitions, before any update."""
+    model = UDPO("MultiInputPolicy", PointGoalEnv(), seed=0, **{**FAST_KWARGS, "learning_starts": 10_000})
+    model.learn(300)
+    assert model._n_updates == 0
+    return model
+
+
+def test_actor_update_leaves_inverse_dynamics_untouched(filled_model: UDPO) -> None:
+    model = filled_model
+    model.train_inverse_dynamics(gradient_steps=5, batch_size=64)
+    model._n_updates = 1  # not a multiple of inverse_dynamics_interval: no refit inside train()
+    inverse_dynamics, planner, critic = (snapshot(m) for m in (model.inverse_dynamics, model.state_planner, model.critic))
+    model.train(gradient_steps=5, batch_size=64)
+    assert not any(changed(inverse_dynamics, model.inverse_dynamics).values())
+    assert all(changed(planner, model.state_planner).values())
+    assert all(changed(critic, model.critic).values())
+
+
+def test_inverse_dynamics_update_changes_only_inverse_dynamics(filled_model: UDPO) -> None:
+    model = filled_model
+    inverse_dynamics, planner, critic = (snapshot(m) for m in (model.inverse_dynamics, model.state_planner, model.critic))
+    loss = model.train_inverse_dynamics(gradient_steps=5, batch_size=64)
+    assert np.isfinite(loss)
+    assert all(changed(inverse_dynamics, model.inverse_dynamics).values())
+    assert not any(changed(planner, model.state_planner).values())
+    assert not any(changed(critic, model.critic).values())
+
+
+def test_train_refits_inverse_dynamics_every_interval(filled_model: UDPO) -> None:
+    model = filled_model
+    model._n_updates = model.inverse_dynamics_interval - 2
+    before = snapshot(model.inverse_dynamics)
+    model.train(gradient_steps=1, batch_size=64)
+    assert not any(changed(before, model.inverse_dynamics).values())
+    model.train(gradient_steps=2, batch_size=64)  # crosses the interval boundary
+    assert all(changed(before, model.inverse_dynamics).values())
+
+
+def test_planner_coef_enters_planner_gradient() -> None:
+    planners = []
+    for planner_coef in (0.0, 1.0):
+        model = UDPO("MultiInputPolicy", PointGoalEnv(), seed=3, **{**FAST_KWARGS, "learning_starts": 10_000}, planner_coef=planner_coef)
+        model.learn(200)
+        model._n_updates = 1
+        th.manual_seed(0)
+        model.train(gradient_steps=1, batch_size=64)
+        planners.append(snapshot(model.state_planner))
+    assert any(not th.equal(planners[0][name], planners[1][name]) for name in planners[0])
+
+
+def test_learns_point_goal_env_with_her() -> None:
+    """UDPO + HER reaches >= 90% success on the tiny point-mass goal task (about 30 s here)."""
+    model = UDPO(
+        "MultiInputPolicy",
+        Monitor(PointGoalEnv()),
+        seed=0,
+        **{
+            **FAST_KWARGS,
+            "learning_starts": 500,
+            "batch_size": 256,
+            "inverse_dynamics_interval": 200,
+            "inverse_dynamics_gradient_steps": 50,
+            "policy_kwargs": dict(net_arch=[64, 64]),
+        },
+    )
+    model.learn(3500)
+    assert success_rate(model) >= 0.9
+
+
+@pytest.mark.parametrize("goal_selection_strategy", ["future", "final", "episode"])
+def test_her_goal_selection_strategies(goal_selection_strategy: str) -> None:
+    model = UDPO(
+        "MultiInputPolicy",
+        PointGoalEnv(),
+        replay_buffer_kwargs=dict(goal_selection_strategy=goal_selection_strategy, n_sampled_goal=2),
+        **FAST_KWARGS,
+    )
+    model.learn(300)
+    assert model._n_updates > 0
+
+
+def test_plain_replay_buffer_and_mlp_policy() -> None:
+    model = UDPO("MultiInputPolicy", PointGoalEnv(), **{**FAST_KWARGS, "replay_buffer_class": None})
+    model.learn(300)
+    assert model._n_updates > 0
+    # Box observation: goal-free planner (DePO's RL setting)
+    model = UDPO("MlpPolicy", "Pendulum-v1", learning_starts=100, batch_size=32, policy_kwargs=dict(net_arch=[16]))
+    model.learn(150)
+    obs, _ = gym.make("Pendulum-v1").reset(seed=0)
+    assert model.predict_next_state(obs).shape == (3,)
+    assert model.policy.goal_slice is None
+
+
+def test_predict_next_state_is_planner_state(filled_model: UDPO) -> None:
+    obs, _ = PointGoalEnv().reset(seed=0)
+    planned = filled_model.predict_next_state(obs)
+    assert planned.shape == (6,)  # observation (4) + achieved_goal (2)
+    assert filled_model.policy.goal_slice == slice(4, 6)
+    batch = {key: np.stack([value, value]) for key, value in obs.items()}
+    np.testing.assert_allclose(filled_model.predict_next_state(batch)[0], planned, rtol=1e-5, atol=1e-6)
+
+
+def test_save_load_round_trip(tmp_path: Path) -> None:
+    model = UDPO("MultiInputPolicy", PointGoalEnv(), seed=1, **FAST_KWARGS)
+    model.learn(300)
+    model.save(tmp_path / "udpo")
+    model.save_replay_buffer(tmp_path / "buffer")
+    env = PointGoalEnv()
+    loaded = UDPO.load(tmp_path / "udpo", env=env)
+    loaded.load_replay_buffer(tmp_path / "buffer")
+    assert loaded.replay_buffer.size() == model.replay_buffer.size()
+    for seed in range(5):
+        obs, _ = env.reset(seed=seed)
+        np.testing.assert_array_equal(model.predict(obs, deterministic=True)[0], loaded.predict(obs, deterministic=True)[0])
+    for name in ("state_planner", "inverse_dynamics", "critic"):
+        for (_, saved), (_, restored) in zip(
+            getattr(model, name).named_parameters(), getattr(loaded, name).named_parameters(), strict=True
+        ):
+            assert th.equal(saved, restored)
+    loaded.learn(100, reset_num_timesteps=False)  # training resumes from the loaded buffer
+
+
+def test_several_envs_and_evaluate_policy() -> None:
+    vec_env = make_vec_env(PointGoalEnv, n_envs=2, seed=0)
+    model = UDPO("MultiInputPolicy", vec_env, **FAST_KWARGS)
+    model.learn(400)
+    assert model.num_timesteps >= 400 and model._n_updates > 0
+    mean_reward, _ = evaluate_policy(model, vec_env, n_eval_episodes=4)
+    assert -25.0 <= mean_reward <= 0.0
+
+
+def test_same_seed_same_parameters() -> None:
+    params = []
+    for _ in range(2):
+        model = UDPO("MultiInputPolicy", PointGoalEnv(), seed=7, **FAST_KWARGS)
+        model.learn(350)
+        params.append(th.cat([p.detach().flatten() for p in model.policy.parameters()]))
+    assert th.equal(params[0], params[1])
+
+
+class CountCalls(BaseCallback):
+    def __init__(self) -> None:
+        super().__init__()
+        self.calls = 0
+
+    def _on_step(self) -> bool:
+        self.calls += 1
+        return True
+
+
+def test_logging_callbacks_progress_bar_tensorboard(tmp_path: Path) -> None:
+    model = UDPO("MultiInputPolicy", Monitor(PointGoalEnv()), tensorboard_log=str(tmp_path / "tb"), **FAST_KWARGS)
+    model.set_logger(configure(str(tmp_path / "csv"), ["csv", "tensorboard"]))
+    callback = CountCalls()
+    model.learn(500, callback=callback, log_interval=1, progress_bar=True)
+    assert callback.calls == 500
+    with open(tmp_path / "csv" / "progress.csv") as file:
+        columns = set(next(csv.reader(file)))
+    for key in (
+        "train/critic_loss",
+        "train/actor_loss",
+        "train/planner_nll",
+        "train/inverse_dynamics_loss",
+        "train/ent_coef",
+        "rollout/plan_error",
+    ):
+        assert key in columns, key
+    assert any((tmp_path / "csv").glob("events.out.tfevents.*"))
+
+
+class ImageGoalEnv(PointGoalEnv):
+    def __init__(self) -> None:
+        super().__init__()
+        self.observation_space = spaces.Dict(
+            {**self.observation_space.spaces, "observation": spaces.Box(0, 255, (16, 16, 3), np.uint8)}
+        )
+
+
+class NoAchievedGoalEnv(PointGoalEnv):
+    def __init__(self) -> None:
+        super().__init__()
+        self.observation_space = spaces.Dict({"observation": self.observation_space["observation"]})
+
+
+class DiscretePointEnv(PointGoalEnv):
+    def __init__(self) -> None:
+        super().__init__()
+        self.action_space = spaces.Discrete(4)
+
+
+@pytest.mark.parametrize(
+    ("env_class", "kwargs", "message"),
+    [
+        (ImageGoalEnv, {}, "Images are not supported"),
+        (NoAchievedGoalEnv, {"replay_buffer_class": HerReplayBuffer}, "achieved_goal"),
+        (DiscretePointEnv, {}, "continuous"),
+        (PointGoalEnv, {"planner_coef": -0.1}, "planner_coef"),
+        (PointGoalEnv, {"inverse_dynamics_interval": 0}, "inverse_dynamics_interval"),
+    ],
+)
+def test_bad_input_raises_before_training(env_class: type, kwargs: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        UDPO("MultiInputPolicy", env_class(), **kwargs)
+
+
+def test_load_refuses_other_spaces(tmp_path: Path) -> None:
+    model = UDPO("MultiInputPolicy", PointGoalEnv(), **FAST_KWARGS)
+    model.save(tmp_path / "udpo")
+    other = PointGoalEnv()
+    other.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+    with pytest.raises(ValueError, match="Action spaces do not match"):
+        UDPO.load(tmp_path / "udpo", env=other)
