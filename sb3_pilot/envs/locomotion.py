@@ -1,0 +1,141 @@
+"""
+The locomotion tasks: ``Pilot/PointLocomotion-v0`` and ``Pilot/AntLocomotion-v0``.
+
+Both robots start at the origin of the same open ground, facing +x, and share one goal distribution
+(:func:`sample_locomotion_goal`): an xy uniform over the disk of radius ``LOCOMOTION_GOAL_RADIUS`` = 2
+around the start, which the Ant can reach in its 100-step (5 s) episode. Success within 0.1.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.envs.mujoco.ant_v5 import AntEnv
+from gymnasium.envs.mujoco.mujoco_env import MujocoEnv
+
+from sb3_pilot.envs.core import GoalReachingMixin, check_render_mode, goal_observation, goal_observation_space
+
+LOCOMOTION_GOAL_RADIUS = 2.0
+LOCOMOTION_DISTANCE_THRESHOLD = 0.1
+# The Ant of AntLocomotion and AntMaze: gymnasium's ant.xml (gear 150, ctrlrange [-1, 1]) with the
+# settings gymnasium-robotics' AntMazeEnv (v5) hard-codes, plus the 27-dim joint-state observation.
+ANT_OBS_KWARGS: dict[str, Any] = {"include_cfrc_ext_in_observation": False}
+ANT_KWARGS: dict[str, Any] = {
+    "exclude_current_positions_from_observation": False,
+    "reset_noise_scale": 0.0,
+    **ANT_OBS_KWARGS,
+}
+ANT_OBS_DIM = 29  # xy (2) + z, orientation, joint angles (13) + velocities (14)
+POINT_XML = os.path.join(os.path.dirname(__file__), "assets", "point.xml")
+_RENDER_MODES = ("human", "rgb_array")
+
+
+def sample_locomotion_goal(rng: np.random.Generator) -> np.ndarray:
+    """
+    :param rng: the random generator
+    :return: an xy uniform over the disk of radius ``LOCOMOTION_GOAL_RADIUS`` centred on the start (origin)
+    """
+    radius = LOCOMOTION_GOAL_RADIUS * np.sqrt(rng.uniform())
+    angle = rng.uniform(-np.pi, np.pi)
+    return radius * np.array([np.cos(angle), np.sin(angle)])
+
+
+class PointLocomotionEnv(GoalReachingMixin, MujocoEnv):
+    """
+    ``Pilot/PointLocomotion-v0``: a MuJoCo point robot with a heading (``assets/point.xml``) on open ground.
+
+    As the point robot of HIRO/MapGo, it moves kinematically: the action (in [-1, 1]^2) turns the heading
+    by ``0.25 * action[1]`` rad, then moves the point by ``forward_step * action[0]`` (0.05 world units by
+    default) along the new heading; MuJoCo holds the state and renders it. dt is the Ant's (0.05 s).
+    Observation (6, as Table 1): ``x, y, cos(heading), sin(heading), vx, vy``; achieved goal: xy.
+
+    :param forward_step: largest forward displacement per step, in world units
+    :param render_mode: ``"rgb_array"``, ``"human"`` or None
+    """
+
+    metadata: dict[str, Any] = {"render_modes": list(_RENDER_MODES), "render_fps": 20}  # noqa: RUF012
+    max_turn = 0.25
+
+    def __init__(self, forward_step: float = 0.05, render_mode: str | None = None):
+        check_render_mode(render_mode, _RENDER_MODES)
+        if forward_step <= 0:
+            raise ValueError(f"forward_step must be positive, got {forward_step!r}")
+        self.forward_step = forward_step
+        self.distance_threshold = LOCOMOTION_DISTANCE_THRESHOLD
+        self.goal = np.zeros(2)
+        obs_space = goal_observation_space(spaces.Box(-np.inf, np.inf, shape=(6,), dtype=np.float32), 2)
+        camera = {"distance": 7.0, "elevation": -90.0, "azimuth": 90.0, "lookat": np.zeros(3)}
+        MujocoEnv.__init__(self, POINT_XML, 5, obs_space, render_mode=render_mode, default_camera_config=camera)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        self._target_site = self.model.site("target").id
+
+    def _get_obs(self) -> dict[str, np.ndarray]:
+        x, y, heading = self.data.qpos
+        vx, vy, _ = self.data.qvel
+        observation = np.array([x, y, np.cos(heading), np.sin(heading), vx, vy], dtype=np.float32)
+        return goal_observation(observation, observation[:2], self.goal)
+
+    def reset_model(self) -> dict[str, np.ndarray]:
+        self.goal = sample_locomotion_goal(self.np_random)
+        self.model.site_pos[self._target_site, :2] = self.goal
+        self.set_state(self.init_qpos, self.init_qvel)
+        return self._get_obs()
+
+    def _get_reset_info(self) -> dict[str, Any]:
+        return self._goal_reward_info(self._get_obs())[1]
+
+    def step(self, action: np.ndarray):
+        forward, turn = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0) * [self.forward_step, self.max_turn]
+        x, y, heading = self.data.qpos
+        heading = (heading + turn + np.pi) % (2 * np.pi) - np.pi
+        delta = forward * np.array([np.cos(heading), np.sin(heading)])
+        self.set_state(np.array([x + delta[0], y + delta[1], heading]), np.append(delta, turn) / self.dt)
+        obs = self._get_obs()
+        reward, info = self._goal_reward_info(obs)
+        if self.render_mode == "human":
+            self.render()
+        return obs, reward, False, False, info
+
+
+class AntLocomotionEnv(GoalReachingMixin, AntEnv):
+    """
+    ``Pilot/AntLocomotion-v0``: gymnasium's Ant (``ant.xml``, the Ant of ``Pilot/AntMaze-v0``) on open ground.
+
+    Built with ``ANT_KWARGS``, the arguments gymnasium-robotics' AntMaze passes to its Ant, so both tasks
+    share gear (150), control range ([-1, 1]), masses and timing. Observation: the Ant's xy (2) followed by
+    the rest of its joint state (27) = 29; achieved goal: xy. Falling over does not end the episode.
+
+    :param render_mode: ``"rgb_array"``, ``"human"`` or None
+    """
+
+    metadata: dict[str, Any] = {"render_modes": list(_RENDER_MODES), "render_fps": 20}  # noqa: RUF012
+
+    def __init__(self, render_mode: str | None = None):
+        check_render_mode(render_mode, _RENDER_MODES)
+        self.distance_threshold = LOCOMOTION_DISTANCE_THRESHOLD
+        self.goal = np.zeros(2)
+        AntEnv.__init__(self, render_mode=render_mode, **ANT_KWARGS)
+        obs_space = spaces.Box(-np.inf, np.inf, shape=(ANT_OBS_DIM,), dtype=np.float32)
+        self.observation_space = goal_observation_space(obs_space, 2)
+
+    def _get_obs(self) -> dict[str, np.ndarray]:
+        ant_obs = AntEnv._get_obs(self).astype(np.float32)
+        return goal_observation(ant_obs, ant_obs[:2], self.goal)
+
+    def reset_model(self) -> dict[str, np.ndarray]:
+        self.goal = sample_locomotion_goal(self.np_random)
+        return AntEnv.reset_model(self)
+
+    def _get_reset_info(self) -> dict[str, Any]:
+        return self._goal_reward_info(self._get_obs())[1]
+
+    def step(self, action: np.ndarray):
+        self.do_simulation(action, self.frame_skip)
+        obs = self._get_obs()
+        reward, info = self._goal_reward_info(obs)
+        if self.render_mode == "human":
+            self.render()
+        return obs, reward, False, False, info

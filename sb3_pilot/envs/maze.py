@@ -1,0 +1,237 @@
+"""
+The U-maze tasks: ``Pilot/Maze2D-v0`` (a kinematic 2D point) and ``Pilot/AntMaze-v0`` (gymnasium-robotics' AntMaze).
+
+Both use gymnasium-robotics' ``U_MAZE`` map at AntMaze's scale (``maze_size_scaling=4``): cell ``(row, col)``
+has its centre at ``x = 4 * (col + 0.5) - 10``, ``y = 10 - 4 * (row + 0.5)``, so the free corridors are
+
+* top: ``x in [-6, 6], y in [2, 6]`` (cells (1, 1), (1, 2), (1, 3)),
+* right: ``x in [2, 6], y in [-2, 2]`` (cell (2, 3)),
+* bottom: ``x in [-6, 6], y in [-6, -2]`` (cells (3, 1), (3, 2), (3, 3)),
+
+and a goal planned in Maze2D is an AntMaze goal with no conversion.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from sb3_pilot.envs.core import GoalReachingMixin, check_render_mode, goal_observation, goal_observation_space
+
+# gymnasium_robotics.envs.maze.maps.U_MAZE (copied: importing gymnasium_robotics imports MuJoCo)
+UMAZE_MAP: tuple[tuple[int, ...], ...] = (
+    (1, 1, 1, 1, 1),
+    (1, 0, 0, 0, 1),
+    (1, 1, 1, 0, 1),
+    (1, 0, 0, 0, 1),
+    (1, 1, 1, 1, 1),
+)
+UMAZE_SCALING = 4.0  # AntMazeEnv's maze_size_scaling
+UMAZE_START_CELL = (1, 1)  # one end of the U ...
+UMAZE_GOAL_CELL = (3, 1)  # ... and the other end: the hard case
+# gymnasium-robotics adds U(-0.25, 0.25) * maze_size_scaling to each coordinate of goal and start
+UMAZE_POSITION_NOISE = 0.25 * UMAZE_SCALING
+MAZE_DISTANCE_THRESHOLD = 1.0
+GOAL_DISTRIBUTIONS = ("far", "uniform")
+
+_ROWS, _COLS = len(UMAZE_MAP), len(UMAZE_MAP[0])
+_X_CENTER, _Y_CENTER = _COLS / 2 * UMAZE_SCALING, _ROWS / 2 * UMAZE_SCALING
+UMAZE_FREE_CELLS: tuple[tuple[int, int], ...] = tuple(
+    (row, col) for row in range(_ROWS) for col in range(_COLS) if UMAZE_MAP[row][col] == 0
+)
+
+
+def umaze_cell_to_xy(cell: tuple[int, int]) -> np.ndarray:
+    """
+    :param cell: ``(row, col)`` index in ``UMAZE_MAP``
+    :return: world coordinates of the cell's centre (as ``Maze.cell_rowcol_to_xy``)
+    """
+    row, col = cell
+    return np.array([(col + 0.5) * UMAZE_SCALING - _X_CENTER, _Y_CENTER - (row + 0.5) * UMAZE_SCALING])
+
+
+_FREE_CENTERS = np.array([umaze_cell_to_xy(cell) for cell in UMAZE_FREE_CELLS])
+
+
+def umaze_is_free(xy: np.ndarray) -> np.ndarray:
+    """
+    Whether points lie in the free space of the U-maze: the union of the closed free cells (a point on
+    a wall's face is free, a point strictly inside a wall block or outside the map is not).
+
+    :param xy: points of shape (..., 2) in world coordinates
+    :return: boolean array of shape (...)
+    """
+    offset = np.abs(np.asarray(xy, dtype=np.float64)[..., None, :] - _FREE_CENTERS)
+    return np.any(np.all(offset <= UMAZE_SCALING / 2, axis=-1), axis=-1)
+
+
+def sample_umaze_start_goal(rng: np.random.Generator, distribution: str = "far") -> tuple[np.ndarray, np.ndarray]:
+    """
+    Start and goal positions shared by Maze2D and AntMaze.
+
+    ``"far"`` (default, the paper's hard case): start in cell (1, 1) and goal in cell (3, 1), the two ends
+    of the U (about 24 units apart along the corridor). ``"uniform"``: AntMaze_UMaze-v5's own distribution,
+    a goal cell uniform among the free cells and a start cell among those whose centre is more than 2 units
+    from the goal. Both then add gymnasium-robotics' uniform noise of +-1 unit to each coordinate.
+
+    :param rng: the random generator
+    :param distribution: ``"far"`` or ``"uniform"``
+    :return: start and goal xy
+    """
+    if distribution == "far":
+        goal_xy = umaze_cell_to_xy(UMAZE_GOAL_CELL)
+        start_xy = umaze_cell_to_xy(UMAZE_START_CELL)
+        goal = goal_xy + rng.uniform(-UMAZE_POSITION_NOISE, UMAZE_POSITION_NOISE, size=2)
+    elif distribution == "uniform":
+        goal = _FREE_CENTERS[rng.integers(len(_FREE_CENTERS))] + rng.uniform(
+            -UMAZE_POSITION_NOISE, UMAZE_POSITION_NOISE, size=2
+        )
+        start_xy = goal.copy()
+        while np.linalg.norm(start_xy - goal) <= 0.5 * UMAZE_SCALING:
+            start_xy = _FREE_CENTERS[rng.integers(len(_FREE_CENTERS))]
+    else:
+        raise ValueError(f"goal_distribution must be one of {GOAL_DISTRIBUTIONS}, got {distribution!r}")
+    start = start_xy + rng.uniform(-UMAZE_POSITION_NOISE, UMAZE_POSITION_NOISE, size=2)
+    return start, goal
+
+
+def _slide_axis(position: np.ndarray, delta: float, axis: int) -> np.ndarray:
+    """
+    Move a free point along one axis, stopping at the face of the wall it would enter.
+
+    :param position: current free xy
+    :param delta: displacement along ``axis`` (smaller than a cell)
+    :param axis: 0 for x, 1 for y
+    :return: the new free xy
+    """
+    moved = position.copy()
+    moved[axis] += delta
+    if umaze_is_free(moved):
+        return moved
+    # the grid line between the old and the new coordinate is the wall's face
+    center = _X_CENTER if axis == 0 else _Y_CENTER
+    lines = (moved[axis] + center) / UMAZE_SCALING
+    moved[axis] = (np.floor(lines) if delta > 0 else np.ceil(lines)) * UMAZE_SCALING - center
+    return moved if umaze_is_free(moved) else position
+
+
+class Maze2DEnv(GoalReachingMixin, gym.Env):
+    """
+    ``Pilot/Maze2D-v0``: a point that moves kinematically in the U-maze (pure numpy).
+
+    The position moves by ``step_size * clip(action, -1, 1)`` (0.5 world units per axis and step), first
+    along x then along y; a move into a wall stops at the wall's face, so the point slides along walls.
+    The shortest path between the two ends of the U takes about 32 steps, within the 50-step episode.
+    Observation, achieved goal: the position (2); success within 1.0.
+
+    :param goal_distribution: ``"far"`` or ``"uniform"``, see :func:`sample_umaze_start_goal`
+    :param step_size: largest displacement per axis and step, in world units
+    :param render_mode: unsupported (must be None)
+    """
+
+    metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012
+
+    def __init__(self, goal_distribution: str = "far", step_size: float = 0.5, render_mode: str | None = None):
+        check_render_mode(render_mode, ())
+        if goal_distribution not in GOAL_DISTRIBUTIONS:
+            raise ValueError(f"goal_distribution must be one of {GOAL_DISTRIBUTIONS}, got {goal_distribution!r}")
+        if not 0 < step_size < UMAZE_SCALING:
+            raise ValueError(f"step_size must be in (0, {UMAZE_SCALING}), got {step_size!r}")
+        self.goal_distribution = goal_distribution
+        self.step_size = step_size
+        self.distance_threshold = MAZE_DISTANCE_THRESHOLD
+        self.render_mode = render_mode
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        self.observation_space = goal_observation_space(spaces.Box(-np.inf, np.inf, shape=(2,), dtype=np.float32), 2)
+        self.position = np.zeros(2)
+        self.goal = np.zeros(2)
+
+    def _get_obs(self) -> dict[str, np.ndarray]:
+        return goal_observation(self.position.astype(np.float32), self.position, self.goal)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        self.position, self.goal = sample_umaze_start_goal(self.np_random, self.goal_distribution)
+        obs = self._get_obs()
+        return obs, self._goal_reward_info(obs)[1]
+
+    def step(self, action: np.ndarray):
+        delta = self.step_size * np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
+        for axis in (0, 1):
+            self.position = _slide_axis(self.position, delta[axis], axis)
+        obs = self._get_obs()
+        reward, info = self._goal_reward_info(obs)
+        return obs, reward, False, False, info
+
+
+class AntMazeEnv(GoalReachingMixin, gym.Env):
+    """
+    ``Pilot/AntMaze-v0``: gymnasium-robotics' ``AntMaze_UMaze-v5`` with the Ant of ``Pilot/AntLocomotion-v0``.
+
+    The maze, walls and Ant come from ``gymnasium_robotics.envs.maze.ant_maze_v5.AntMazeEnv`` (built with
+    ``include_cfrc_ext_in_observation=False``). Start and goal follow :func:`sample_umaze_start_goal`, as in
+    Maze2D, and the goal stays fixed for the episode (``continuing_task`` without goal resampling).
+    Observation: the Ant's xy (2) followed by the rest of its joint state (27) = 29; achieved goal: xy;
+    success within 1.0 (gymnasium-robotics uses 0.45). Falling over does not end the episode.
+
+    :param goal_distribution: ``"far"`` or ``"uniform"``, see :func:`sample_umaze_start_goal`
+    :param render_mode: ``"rgb_array"``, ``"human"`` or None
+    """
+
+    metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 20}  # noqa: RUF012
+
+    def __init__(self, goal_distribution: str = "far", render_mode: str | None = None):
+        from gymnasium_robotics.envs.maze.ant_maze_v5 import AntMazeEnv as RoboticsAntMazeEnv
+
+        from sb3_pilot.envs.locomotion import ANT_KWARGS, ANT_OBS_DIM
+
+        check_render_mode(render_mode, tuple(self.metadata["render_modes"]))
+        if goal_distribution not in GOAL_DISTRIBUTIONS:
+            raise ValueError(f"goal_distribution must be one of {GOAL_DISTRIBUTIONS}, got {goal_distribution!r}")
+        self.goal_distribution = goal_distribution
+        self.distance_threshold = MAZE_DISTANCE_THRESHOLD
+        self.render_mode = render_mode
+        self.maze_env = RoboticsAntMazeEnv(
+            render_mode=render_mode,
+            maze_map=[list(row) for row in UMAZE_MAP],
+            continuing_task=True,
+            reset_target=False,
+            include_cfrc_ext_in_observation=ANT_KWARGS["include_cfrc_ext_in_observation"],
+        )
+        self.ant_env = self.maze_env.ant_env
+        self.action_space = self.ant_env.action_space
+        obs_space = spaces.Box(-np.inf, np.inf, shape=(ANT_OBS_DIM,), dtype=np.float32)
+        self.observation_space = goal_observation_space(obs_space, 2)
+
+    def _get_obs(self, ant_obs: np.ndarray) -> dict[str, np.ndarray]:
+        ant_obs = ant_obs.astype(np.float32)
+        return goal_observation(ant_obs, ant_obs[:2], self.goal)
+
+    @property
+    def goal(self) -> np.ndarray:
+        """The desired xy of the episode."""
+        return self.maze_env.goal
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        start, self.maze_env.goal = sample_umaze_start_goal(self.np_random, self.goal_distribution)
+        self.maze_env.update_target_site_pos()
+        self.ant_env.init_qpos[:2] = start
+        ant_obs, _ = self.ant_env.reset(seed=seed)
+        obs = self._get_obs(ant_obs)
+        return obs, self._goal_reward_info(obs)[1]
+
+    def step(self, action: np.ndarray):
+        ant_obs, *_ = self.ant_env.step(action)
+        obs = self._get_obs(ant_obs)
+        reward, info = self._goal_reward_info(obs)
+        return obs, reward, False, False, info
+
+    def render(self) -> np.ndarray | None:
+        return self.ant_env.render()
+
+    def close(self) -> None:
+        self.maze_env.close()
