@@ -1,0 +1,205 @@
+"""The goal planner ``f(g' | g, g_target)`` of PILoT's distillation stage (paper section 3.2)."""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from typing import Any
+
+import numpy as np
+import torch as th
+from stable_baselines3.common.torch_layers import create_mlp
+from torch import nn
+
+from sb3_pilot.version import __version__
+
+# Same bounds as the state planner's Gaussian (in units of the goal-change scale)
+LOG_STD_MIN = -20.0
+LOG_STD_MAX = 2.0
+_HALF_LOG_2PI = 0.5 * math.log(2 * math.pi)
+
+#: Groups of task IDs whose goals have the same meaning in the same coordinates (the paper's transfer pairs):
+#: a planner distilled on one task of a group may plan for any task of the group.
+SHARED_GOAL_SPACES: list[frozenset[str]] = [
+    frozenset({"Pilot/FetchReach-v0", "Pilot/FetchReachHighDim-v0", "Pilot/FetchReachImage-v0"}),
+    frozenset({"Pilot/FetchPush-v0", "Pilot/FetchPushHighDim-v0"}),
+    frozenset({"Pilot/Reacher-v0", "Pilot/ReacherImage-v0"}),
+    frozenset({"Pilot/PointLocomotion-v0", "Pilot/AntLocomotion-v0"}),
+    frozenset({"Pilot/Maze2D-v0", "Pilot/AntMaze-v0"}),
+]
+
+
+def share_goal_space(*task_ids: str) -> None:
+    """
+    Declare that tasks share one goal space, so a planner distilled on one of them may guide the others.
+
+    :param task_ids: Gymnasium IDs (or, for unregistered envs, class names) of the tasks
+    """
+    if len(task_ids) < 2:
+        raise ValueError(f"share_goal_space needs at least two task IDs, got {task_ids}.")
+    SHARED_GOAL_SPACES.append(frozenset(task_ids))
+
+
+def shares_goal_space(source_task: str, target_task: str) -> bool:
+    """
+    :param source_task: task a planner was distilled on
+    :param target_task: task it is asked to plan for
+    :return: whether the two tasks are the same or were declared to share their goal space
+    """
+    return source_task == target_task or any({source_task, target_task} <= group for group in SHARED_GOAL_SPACES)
+
+
+def diagonal_gaussian_nll(value: th.Tensor, mean: th.Tensor, log_std: th.Tensor) -> th.Tensor:
+    """Negative log-density of a diagonal Gaussian, summed over the last dimension."""
+    return (0.5 * ((value - mean) * th.exp(-log_std)) ** 2 + log_std + _HALF_LOG_2PI).sum(dim=-1)
+
+
+class GoalPlanner(nn.Module):
+    """
+    Goal planner ``f(g' | g, g_target)`` (paper section 3.2): a diagonal Gaussian MLP over the change of goal
+    ``g' - g``, given the achieved goal ``g`` and the target goal ``g_target``.
+
+    It takes and returns raw goal coordinates (what the env reports in ``achieved_goal``/``desired_goal``).
+    Internally, inputs are standardised with ``goal_mean``/``goal_std`` and the output is scaled by
+    ``delta_scale``; these are buffers set from the distillation data and saved with the weights.
+
+    :param goal_dim: size of the goal vectors
+    :param net_arch: hidden layer sizes
+    :param activation_fn: activation function (a ``torch.nn`` module class)
+    :param metadata: facts about the planner's origin, saved with it (``source_task``, ``n_samples``, ...)
+    """
+
+    goal_mean: th.Tensor
+    goal_std: th.Tensor
+    delta_scale: th.Tensor
+
+    def __init__(
+        self,
+        goal_dim: int,
+        net_arch: list[int] | None = None,
+        activation_fn: type[nn.Module] = nn.ReLU,
+        metadata: dict[str, Any] | None = None,
+    ):
+        super().__init__()
+        if goal_dim < 1:
+            raise ValueError(f"goal_dim must be >= 1, got {goal_dim}.")
+        self.goal_dim = goal_dim
+        self.net_arch = [256, 256] if net_arch is None else list(net_arch)
+        self.activation_fn = activation_fn
+        self.metadata = {"goal_dim": goal_dim, "sb3_pilot_version": __version__, **(metadata or {})}
+        self.net = nn.Sequential(*create_mlp(2 * goal_dim, 2 * goal_dim, self.net_arch, activation_fn))
+        self.register_buffer("goal_mean", th.zeros(goal_dim))
+        self.register_buffer("goal_std", th.ones(goal_dim))
+        self.register_buffer("delta_scale", th.ones(goal_dim))
+
+    @property
+    def source_task(self) -> str | None:
+        """The task the planner was distilled on."""
+        return self.metadata.get("source_task")
+
+    def set_scales(self, goals: th.Tensor, deltas: th.Tensor) -> None:
+        """
+        Set the input standardisation and the output scale from data.
+
+        :param goals: goals the planner will see, shape (n, goal_dim)
+        :param deltas: changes of goal it will predict, shape (n, goal_dim)
+        """
+        self.goal_mean.copy_(goals.mean(dim=0))
+        self.goal_std.copy_(goals.std(dim=0).clamp_min(1e-6))
+        self.delta_scale.copy_(deltas.abs().mean(dim=0).clamp_min(1e-6))
+
+    def distribution_params(self, achieved_goal: th.Tensor, desired_goal: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """
+        :param achieved_goal: current goals ``g``, shape (n, goal_dim), raw coordinates
+        :param desired_goal: target goals ``g_target``, same shape
+        :return: mean and log-std of the Gaussian over ``g' - g``, raw coordinates
+        """
+        inputs = th.cat([achieved_goal - self.goal_mean, desired_goal - self.goal_mean], dim=-1) / self.goal_std.repeat(2)
+        delta_mean, log_std = self.net(inputs).chunk(2, dim=-1)
+        return delta_mean * self.delta_scale, th.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX) + th.log(self.delta_scale)
+
+    def nll(self, next_goal: th.Tensor, achieved_goal: th.Tensor, desired_goal: th.Tensor) -> th.Tensor:
+        """Negative log-likelihood ``-log f(g' | g, g_target)`` of next goals, shape (n,)."""
+        delta_mean, log_std = self.distribution_params(achieved_goal, desired_goal)
+        return diagonal_gaussian_nll(next_goal - achieved_goal, delta_mean, log_std)
+
+    def forward(self, achieved_goal: th.Tensor, desired_goal: th.Tensor, deterministic: bool = True) -> th.Tensor:
+        """Next goal ``g'`` (the mean if ``deterministic``, else a sample)."""
+        delta_mean, log_std = self.distribution_params(achieved_goal, desired_goal)
+        if not deterministic:
+            delta_mean = delta_mean + th.randn_like(delta_mean) * th.exp(log_std)
+        return achieved_goal + delta_mean
+
+    def _to_tensor(self, goals: np.ndarray, name: str) -> th.Tensor:
+        goals = np.asarray(goals, dtype=np.float32)
+        if goals.shape[-1:] != (self.goal_dim,) or goals.ndim > 2:
+            raise ValueError(f"{name} must have shape ({self.goal_dim},) or (n, {self.goal_dim}), got {goals.shape}.")
+        return th.as_tensor(goals.reshape(-1, self.goal_dim), device=self.goal_mean.device)
+
+    def predict(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, deterministic: bool = True) -> np.ndarray:
+        """
+        The immediate landmark ``g' ~ f(. | g, g_target)``.
+
+        :param achieved_goal: current goal(s), shape (goal_dim,) or (n, goal_dim), raw coordinates
+        :param desired_goal: target goal(s), same shape
+        :param deterministic: return the mean instead of a sample
+        :return: next goal(s), same shape as ``achieved_goal``
+        """
+        achieved = self._to_tensor(achieved_goal, "achieved_goal")
+        desired = self._to_tensor(desired_goal, "desired_goal")
+        if achieved.shape != desired.shape:
+            raise ValueError(f"achieved_goal and desired_goal shapes differ: {achieved.shape} vs {desired.shape}.")
+        with th.no_grad():
+            next_goal = self(achieved, desired, deterministic=deterministic).cpu().numpy()
+        return next_goal.reshape(np.shape(achieved_goal))
+
+    def plan(
+        self, achieved_goal: np.ndarray, desired_goal: np.ndarray, horizon: int = 1, deterministic: bool = True
+    ) -> np.ndarray:
+        """
+        Imagined path: ``horizon`` landmarks chained from ``achieved_goal``, each planned from the previous one.
+
+        :param achieved_goal: start goal(s), shape (goal_dim,) or (n, goal_dim)
+        :param desired_goal: target goal(s), same shape
+        :param horizon: number of landmarks ``k``
+        :param deterministic: chain the means instead of samples
+        :return: landmarks, shape (horizon, goal_dim) or (n, horizon, goal_dim)
+        """
+        if horizon < 1:
+            raise ValueError(f"horizon must be >= 1, got {horizon}.")
+        landmarks, goal = [], achieved_goal
+        for _ in range(horizon):
+            goal = self.predict(goal, desired_goal, deterministic=deterministic)
+            landmarks.append(goal)
+        return np.stack(landmarks, axis=-2)
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Save weights, scales, architecture and metadata (a ``torch.save`` file)."""
+        th.save(
+            {
+                "state_dict": self.state_dict(),
+                "net_arch": self.net_arch,
+                "activation_fn": self.activation_fn.__name__,
+                "metadata": self.metadata,
+            },
+            path,
+        )
+
+    @classmethod
+    def load(cls, path: str | os.PathLike, device: th.device | str = "cpu") -> GoalPlanner:
+        """
+        Load a planner saved with :meth:`save` (warns if it was saved by another sb3_pilot version).
+
+        :param path: file written by :meth:`save`
+        :param device: device to load the planner on
+        """
+        data = th.load(path, map_location=device, weights_only=True)
+        metadata = data["metadata"]
+        if metadata.get("sb3_pilot_version") != __version__:
+            warnings.warn(
+                f"Goal planner {path} was saved by sb3_pilot {metadata.get('sb3_pilot_version')}, this is {__version__}."
+            )
+        planner = cls(metadata["goal_dim"], data["net_arch"], getattr(nn, data["activation_fn"]), metadata=metadata)
+        planner.load_state_dict(data["state_dict"])
+        return planner.to(device)
