@@ -104,6 +104,16 @@ class FetchEnv(GoalReachingMixin, gym.Env):
             self.fetch.model.opt.gravity[:] *= HIGH_DIM_GRAVITY_SCALE
         self.image_renderer = None if image_size is None else ImageRenderer(self.fetch.model, image_size, IMAGE_CAMERA_CONFIG)
 
+    @property
+    def model(self) -> Any:
+        """The ``MjModel`` of the Fetch task."""
+        return self.fetch.model
+
+    @property
+    def data(self) -> Any:
+        """The ``MjData`` of the Fetch task."""
+        return self.fetch.data
+
     def _get_obs(self, fetch_obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         observation = fetch_obs["observation"].astype(np.float32) if self.image_renderer is None else self._render_image()
         return goal_observation(observation, fetch_obs["achieved_goal"], fetch_obs["desired_goal"])
@@ -125,7 +135,7 @@ class FetchEnv(GoalReachingMixin, gym.Env):
 
     def _render_image(self) -> np.ndarray:
         self.fetch._render_callback()  # gymnasium-robotics' pre-render hook: moves the target site to the goal
-        return self.image_renderer.render(self.fetch.data)
+        return self.image_renderer.render(self.data)
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:

@@ -215,6 +215,16 @@ class AntMazeEnv(GoalReachingMixin, gym.Env):
         """The desired xy of the episode."""
         return self.maze_env.goal
 
+    @property
+    def model(self) -> Any:
+        """The ``MjModel`` of the Ant in the maze."""
+        return self.ant_env.model
+
+    @property
+    def data(self) -> Any:
+        """The ``MjData`` of the Ant in the maze."""
+        return self.ant_env.data
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         start, self.maze_env.goal = sample_umaze_start_goal(self.np_random, self.goal_distribution)
