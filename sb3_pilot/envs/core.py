@@ -1,4 +1,4 @@
-"""Shared pieces of the PILoT tasks: the sparse goal-reaching reward and the rendering checks."""
+"""Shared pieces of the PILoT tasks: the sparse goal-reaching reward, the spaces and off-screen rendering."""
 
 from __future__ import annotations
 
