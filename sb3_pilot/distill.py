@@ -3,31 +3,17 @@
 from __future__ import annotations
 
 import sys
-from typing import Any
 
 import numpy as np
 import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.buffers import DictReplayBuffer
 from stable_baselines3.common.logger import HumanOutputFormat, Logger
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize
+from stable_baselines3.common.vec_env import VecNormalize
 from tqdm.auto import tqdm
 
-from sb3_pilot.planner import GoalPlanner, diagonal_gaussian_nll
+from sb3_pilot.planner import GoalPlanner, diagonal_gaussian_nll, task_id
 from sb3_pilot.udpo import UDPO
-
-
-def task_id(env: Any) -> str:
-    """
-    Name of the task an env (or the first env of a ``VecEnv``) runs: its Gymnasium ID, or its class name
-    when it was not made with ``gym.make``.
-    """
-    if isinstance(env, VecEnv):
-        spec = env.get_attr("spec", indices=[0])[0]
-        unwrapped = env.get_attr("unwrapped", indices=[0])[0]
-    else:
-        spec, unwrapped = env.spec, env.unwrapped
-    return spec.id if spec is not None else type(unwrapped).__name__
 
 
 def goal_scaling(vec_normalize: VecNormalize | None, goal_dim: int) -> tuple[np.ndarray, np.ndarray]:

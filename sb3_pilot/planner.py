@@ -7,9 +7,11 @@ import os
 import warnings
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 import torch as th
 from stable_baselines3.common.torch_layers import create_mlp
+from stable_baselines3.common.vec_env import VecEnv
 from torch import nn
 
 from sb3_pilot.version import __version__
@@ -48,6 +50,17 @@ def shares_goal_space(source_task: str, target_task: str) -> bool:
     :return: whether the two tasks are the same or were declared to share their goal space
     """
     return source_task == target_task or any({source_task, target_task} <= group for group in SHARED_GOAL_SPACES)
+
+
+def task_id(env: gym.Env | VecEnv) -> str:
+    """
+    Name of the task an env (or the first env of a ``VecEnv``) runs: its Gymnasium ID, or the class name of the
+    unwrapped env when it was not made with ``gym.make``.
+    """
+    if isinstance(env, VecEnv):
+        spec = env.get_attr("spec", indices=[0])[0]
+        return spec.id if spec is not None else type(env.get_attr("unwrapped", indices=[0])[0]).__name__
+    return env.spec.id if env.spec is not None else type(env.unwrapped).__name__
 
 
 def diagonal_gaussian_nll(value: th.Tensor, mean: th.Tensor, log_std: th.Tensor) -> th.Tensor:

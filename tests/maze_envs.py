@@ -1,0 +1,118 @@
+"""Tiny kinematic maze and trained teachers for the tests of the distillation and transfer stages."""
+
+import functools
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3 import HerReplayBuffer
+from stable_baselines3.common.monitor import Monitor
+
+from sb3_pilot import UDPO
+
+
+class WallMazeEnv(gym.Env):
+    """
+    A point in ``[-1, 1]^2`` that moves kinematically (``p <- p + step_size * clip(a, -1, 1)``) with a wall along
+    ``x = 0`` from ``y = -1`` up to ``y = gap_y``: to go from one side to the other at low ``y``, the point must go
+    around the wall through the gap. A move that would cross (or end in) the wall leaves the point where it is.
+
+    Dict observation: ``observation`` and ``achieved_goal`` are the position, ``desired_goal`` the target, all shifted
+    by ``offset`` (to test coordinate conventions). Sparse reward: 0 within ``success_distance``, -1 otherwise.
+    ``reset(options={"start": xy, "goal": xy})`` places start and goal (unshifted coordinates); otherwise both are
+    drawn uniformly in the free space.
+
+    :param max_episode_steps: episode length (truncation)
+    :param step_size: largest move per step
+    :param gap_y: the wall covers ``y < gap_y``
+    :param success_distance: distance under which the goal counts as reached
+    :param offset: shift of every reported coordinate
+    """
+
+    metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012
+    wall_half_width = 0.05
+
+    def __init__(
+        self,
+        max_episode_steps: int = 30,
+        step_size: float = 0.15,
+        gap_y: float = 0.4,
+        success_distance: float = 0.1,
+        offset: float = 0.0,
+    ):
+        self.max_episode_steps = max_episode_steps
+        self.step_size = step_size
+        self.gap_y = gap_y
+        self.success_distance = success_distance
+        self.offset = offset
+        box = spaces.Box(-1.0 + offset, 1.0 + offset, shape=(2,), dtype=np.float32)
+        self.observation_space = spaces.Dict({"observation": box, "achieved_goal": box, "desired_goal": box})
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        self.position = np.zeros(2)
+        self.goal = np.zeros(2)
+        self.steps = 0
+
+    def blocked(self, start: np.ndarray, end: np.ndarray) -> bool:
+        """Whether the straight move from ``start`` to ``end`` (unshifted) hits the wall."""
+        if abs(end[0]) <= self.wall_half_width and end[1] < self.gap_y:
+            return True
+        if np.sign(start[0]) == np.sign(end[0]):
+            return False
+        crossing_y = start[1] + (end[1] - start[1]) * (0.0 - start[0]) / (end[0] - start[0])
+        return bool(crossing_y < self.gap_y)
+
+    def _sample_free(self) -> np.ndarray:
+        while True:
+            position = self.np_random.uniform(-0.9, 0.9, size=2)
+            if abs(position[0]) > 2 * self.wall_half_width or position[1] > self.gap_y:
+                return position
+
+    def _obs(self) -> dict[str, np.ndarray]:
+        position = (self.position + self.offset).astype(np.float32)
+        return {
+            "observation": position,
+            "achieved_goal": position.copy(),
+            "desired_goal": (self.goal + self.offset).astype(np.float32),
+        }
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        options = options or {}
+        self.position = np.array(options["start"], dtype=float) if "start" in options else self._sample_free()
+        self.goal = np.array(options["goal"], dtype=float) if "goal" in options else self._sample_free()
+        self.steps = 0
+        return self._obs(), {}
+
+    def step(self, action: np.ndarray):
+        target = np.clip(self.position + self.step_size * np.clip(action, -1.0, 1.0), -1.0, 1.0)
+        if not self.blocked(self.position, target):
+            self.position = target
+        self.steps += 1
+        obs = self._obs()
+        reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], {}))
+        return obs, reward, False, self.steps >= self.max_episode_steps, {"is_success": reward == 0.0}
+
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
+        distance = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
+        return -(distance > self.success_distance).astype(np.float32)
+
+
+@functools.cache
+def train_udpo(env_class: type[gym.Env], total_timesteps: int, seed: int = 0, **env_kwargs: Any) -> UDPO:
+    """UDPO + HER with the small settings that solve the tiny test envs (cached per process)."""
+    model = UDPO(
+        "MultiInputPolicy",
+        Monitor(env_class(**env_kwargs)),
+        replay_buffer_class=HerReplayBuffer,
+        learning_starts=500,
+        batch_size=256,
+        gamma=0.95,
+        learning_rate=1e-3,
+        policy_kwargs={"net_arch": [64, 64]},
+        inverse_dynamics_interval=200,
+        inverse_dynamics_learning_rate=1e-3,
+        inverse_dynamics_gradient_steps=50,
+        seed=seed,
+    )
+    return model.learn(total_timesteps)
