@@ -7,8 +7,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import torch as th
-from gymnasium import spaces
 from goal_envs import PointGoalEnv
+from gymnasium import spaces
 from stable_baselines3 import HerReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.env_util import make_vec_env
@@ -96,7 +96,9 @@ def test_train_refits_inverse_dynamics_every_interval(filled_model: UDPO) -> Non
 def test_planner_coef_enters_planner_gradient() -> None:
     planners = []
     for planner_coef in (0.0, 1.0):
-        model = UDPO("MultiInputPolicy", PointGoalEnv(), seed=3, **{**FAST_KWARGS, "learning_starts": 10_000}, planner_coef=planner_coef)
+        model = UDPO(
+            "MultiInputPolicy", PointGoalEnv(), seed=3, **{**FAST_KWARGS, "learning_starts": 10_000}, planner_coef=planner_coef
+        )
         model.learn(200)
         model._n_updates = 1
         th.manual_seed(0)

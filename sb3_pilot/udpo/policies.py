@@ -1,7 +1,7 @@
 """Networks of UDPO: goal-conditioned state planner, inverse dynamics and twin Q critics."""
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch as th
@@ -87,6 +87,17 @@ def planner_state_dim(observation_space: spaces.Space) -> int:
     if isinstance(observation_space, spaces.Dict):
         return sum(int(observation_space[key].shape[0]) for key in PLANNER_STATE_KEYS if key in observation_space.spaces)
     return int(observation_space.shape[0])
+
+
+class Plan(NamedTuple):
+    """One pass of the decoupled policy: the planner's distribution, the planned state and the action towards it."""
+
+    state: th.Tensor
+    delta_mean: th.Tensor
+    delta_log_std: th.Tensor
+    planned_state: th.Tensor
+    actions: th.Tensor
+    log_prob: th.Tensor
 
 
 class StatePlanner(BaseModel):
@@ -338,28 +349,30 @@ class UDPOPolicy(BasePolicy):
             return slice(self.state_dim - goal_dim, self.state_dim)
         return None
 
-    def plan_and_act(self, obs: PyTorchObs, deterministic: bool = False) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
+    def plan_and_act(self, obs: PyTorchObs, deterministic: bool = False) -> Plan:
         """
-        Plan a next state and act towards it.
+        Plan a next state ``s' ~ h(. | s, g)`` and act towards it with ``a ~ I(. | s, s')``.
 
         :param obs: preprocessed observation batch
         :param deterministic: use the means of the planner and of the inverse dynamics
-        :return: planned next state, squashed action in ``[-1, 1]``, ``log I(a | s, s')``
+        :return: the planner's distribution, the planned state, the squashed action in ``[-1, 1]`` and
+            ``log I(a | s, s')`` (shape ``(batch,)``)
         """
         state, delta_mean, log_std = self.state_planner.distribution_params(obs)
         planned = state + delta_mean
         if not deterministic:
             planned = planned + th.randn_like(delta_mean) * th.exp(log_std)
         actions, log_prob = self.inverse_dynamics(state, planned, deterministic=deterministic)
-        return planned, actions, log_prob
+        return Plan(state, delta_mean, log_std, planned, actions, log_prob)
 
     def forward(self, obs: PyTorchObs, deterministic: bool = False) -> th.Tensor:
         return self._predict(obs, deterministic=deterministic)
 
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
-        planned, actions, _ = self.plan_and_act(observation, deterministic)
-        self.last_planned_state = planned
-        return actions
+        plan = self.plan_and_act(observation, deterministic)
+        # Kept for the plan error that UDPO logs during rollouts
+        self.last_planned_state = plan.planned_state
+        return plan.actions
 
     def predict_next_state(self, observation: np.ndarray | dict[str, np.ndarray], deterministic: bool = True) -> np.ndarray:
         """

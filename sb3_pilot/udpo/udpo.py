@@ -192,7 +192,8 @@ class UDPO(OffPolicyAlgorithm):
     def _setup_model(self) -> None:
         if not isinstance(self.action_space, spaces.Box):
             raise ValueError(
-                f"UDPO needs a continuous (Box) action space: its inverse dynamics is a squashed Gaussian, got {self.action_space}."
+                "UDPO needs a continuous (Box) action space, its inverse dynamics being a squashed Gaussian; "
+                f"got {self.action_space}."
             )
         check_observation_space(self.observation_space)
         uses_her = isinstance(self.replay_buffer_class, type) and issubclass(self.replay_buffer_class, HerReplayBuffer)
@@ -256,14 +257,10 @@ class UDPO(OffPolicyAlgorithm):
             replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
             discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
 
-            # Plan and act for s (graph to the planner only) and s' (no graph) in one batched pass
-            batch_obs = _concat_obs(replay_data.observations, replay_data.next_observations)
+            # The graph of the actor loss reaches the planner only: the inverse dynamics is held fixed
             with frozen(self.inverse_dynamics):
-                state, delta_mean, log_std = self.state_planner.distribution_params(batch_obs)
-                planned = state + delta_mean + th.randn_like(delta_mean) * th.exp(log_std)
-                actions, log_prob = self.inverse_dynamics(state, planned)
-            actions_pi, next_actions = actions[:batch_size], actions[batch_size:].detach()
-            log_prob, next_log_prob = log_prob[:batch_size].reshape(-1, 1), log_prob[batch_size:].detach().reshape(-1, 1)
+                plan = self.policy.plan_and_act(replay_data.observations)
+            log_prob = plan.log_prob.reshape(-1, 1)
 
             ent_coef_loss = None
             if self.ent_coef_optimizer is not None and self.log_ent_coef is not None:
@@ -280,9 +277,10 @@ class UDPO(OffPolicyAlgorithm):
                 self.ent_coef_optimizer.step()
 
             with th.no_grad():
-                next_q_values = th.cat(self.critic_target(replay_data.next_observations, next_actions), dim=1)
+                next_plan = self.policy.plan_and_act(replay_data.next_observations)
+                next_q_values = th.cat(self.critic_target(replay_data.next_observations, next_plan.actions), dim=1)
                 next_q_values, _ = th.min(next_q_values, dim=1, keepdim=True)
-                next_q_values = next_q_values - ent_coef * next_log_prob
+                next_q_values = next_q_values - ent_coef * next_plan.log_prob.reshape(-1, 1)
                 target_q_values = replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_values
 
             current_q_values = self.critic(replay_data.observations, replay_data.actions)
@@ -294,13 +292,12 @@ class UDPO(OffPolicyAlgorithm):
             self.critic.optimizer.step()
 
             # Planner: SAC actor loss through the frozen inverse dynamics + lambda * NLL of the real transition
-            q_values_pi = th.cat(self.critic(replay_data.observations, actions_pi), dim=1)
+            with frozen(self.critic):  # no critic weight gradients from the actor loss: they would be discarded
+                q_values_pi = th.cat(self.critic(replay_data.observations, plan.actions), dim=1)
             min_qf_pi, _ = th.min(q_values_pi, dim=1, keepdim=True)
             actor_loss = (ent_coef * log_prob - min_qf_pi).mean()
             real_next_state = self.state_planner.planner_state(replay_data.next_observations)
-            planner_nll = -gaussian_log_prob(
-                real_next_state - state[:batch_size], delta_mean[:batch_size], log_std[:batch_size]
-            ).mean()
+            planner_nll = -gaussian_log_prob(real_next_state - plan.state, plan.delta_mean, plan.delta_log_std).mean()
             actor_losses.append(actor_loss.item())
             planner_nlls.append(planner_nll.item())
             if not self.freeze_planner:
@@ -325,6 +322,9 @@ class UDPO(OffPolicyAlgorithm):
         Refit the inverse dynamics ``I(a | s, s')`` by maximum likelihood on buffer transitions ``(s, s', a)``
         (paper eq. "inverse-dynamics"). Only ``policy.inverse_dynamics`` changes.
 
+        The transitions of all steps are drawn in one replay-buffer call (goals play no part in ``I``,
+        so HER relabelling is irrelevant here) and split into ``gradient_steps`` minibatches.
+
         :param gradient_steps: number of supervised gradient steps
         :param batch_size: minibatch size
         :return: mean negative log-likelihood over the steps
@@ -333,13 +333,14 @@ class UDPO(OffPolicyAlgorithm):
         update_learning_rate(
             self.inverse_dynamics.optimizer, self.inverse_dynamics_lr_schedule(self._current_progress_remaining)
         )
+        replay_data = self.replay_buffer.sample(gradient_steps * batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
+        states = self.state_planner.planner_state(replay_data.observations).split(batch_size)
+        next_states = self.state_planner.planner_state(replay_data.next_observations).split(batch_size)
         losses = th.zeros(gradient_steps, device=self.device)
-        for step in range(gradient_steps):
-            replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
-            with th.no_grad():
-                state = self.state_planner.planner_state(replay_data.observations)
-                next_state = self.state_planner.planner_state(replay_data.next_observations)
-            loss = -self.inverse_dynamics.log_prob(state, next_state, replay_data.actions).mean()
+        for step, (state, next_state, actions) in enumerate(
+            zip(states, next_states, replay_data.actions.split(batch_size), strict=True)
+        ):
+            loss = -self.inverse_dynamics.log_prob(state, next_state, actions).mean()
             self.inverse_dynamics.optimizer.zero_grad()
             loss.backward()
             self.inverse_dynamics.optimizer.step()
@@ -439,10 +440,3 @@ class UDPO(OffPolicyAlgorithm):
             state_dicts.append("ent_coef_optimizer")
             return state_dicts, ["log_ent_coef"]
         return state_dicts, ["ent_coef_tensor"]
-
-
-def _concat_obs(first: th.Tensor | dict[str, th.Tensor], second: th.Tensor | dict[str, th.Tensor]) -> Any:
-    """Stack two observation batches along the batch dimension (Dict observations key by key)."""
-    if isinstance(first, dict):
-        return {key: th.cat([first[key], second[key]]) for key in first}  # type: ignore[index]
-    return th.cat([first, second])
