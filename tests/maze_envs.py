@@ -99,11 +99,11 @@ class WallMazeEnv(gym.Env):
 
 
 @functools.cache
-def train_udpo(env_class: type[gym.Env], total_timesteps: int, seed: int = 0, **env_kwargs: Any) -> UDPO:
+def train_udpo(env_class: type[gym.Env], total_timesteps: int, seed: int = 0, planner_coef: float = 1e-2) -> UDPO:
     """UDPO + HER with the small settings that solve the tiny test envs (cached per process)."""
     model = UDPO(
         "MultiInputPolicy",
-        Monitor(env_class(**env_kwargs)),
+        Monitor(env_class()),
         replay_buffer_class=HerReplayBuffer,
         learning_starts=500,
         batch_size=256,
@@ -113,6 +113,7 @@ def train_udpo(env_class: type[gym.Env], total_timesteps: int, seed: int = 0, **
         inverse_dynamics_interval=200,
         inverse_dynamics_learning_rate=1e-3,
         inverse_dynamics_gradient_steps=50,
+        planner_coef=planner_coef,
         seed=seed,
     )
     return model.learn(total_timesteps)
