@@ -36,8 +36,8 @@ class WallMazeEnv(gym.Env):
     def __init__(
         self,
         max_episode_steps: int = 30,
-        step_size: float = 0.15,
-        gap_y: float = 0.4,
+        step_size: float = 0.2,
+        gap_y: float = 0.0,
         success_distance: float = 0.1,
         offset: float = 0.0,
     ):

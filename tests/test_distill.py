@@ -1,0 +1,143 @@
+"""Distillation of UDPO's state planner into a GoalPlanner: agreement, coordinates, determinism, save/load."""
+
+import numpy as np
+import pytest
+import torch as th
+from goal_envs import PointGoalEnv
+from maze_envs import WallMazeEnv, train_udpo
+from stable_baselines3 import HerReplayBuffer
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+from sb3_pilot import UDPO
+from sb3_pilot.distill import distill_goal_planner, teacher_goal_distribution
+from sb3_pilot.planner import GoalPlanner
+
+DISTILL_KWARGS = {"n_samples": 10_000, "gradient_steps": 1000, "net_arch": [64, 64]}
+
+
+@pytest.fixture(scope="module")
+def point_teacher():
+    return train_udpo(PointGoalEnv, total_timesteps=3000)
+
+
+@pytest.fixture(scope="module")
+def point_planner(point_teacher):
+    return distill_goal_planner(point_teacher, **DISTILL_KWARGS)
+
+
+def rollout_observations(n_episodes: int = 4) -> dict[str, np.ndarray]:
+    """Observations of random-action episodes (not from the replay buffer)."""
+    env, rng, observations = PointGoalEnv(), np.random.default_rng(0), []
+    for episode in range(n_episodes):
+        obs, _ = env.reset(seed=100 + episode)
+        for _ in range(env.max_episode_steps):
+            observations.append(obs)
+            obs, *_ = env.step(rng.uniform(-1, 1, size=2))
+    return {key: np.stack([obs[key] for obs in observations]) for key in observations[0]}
+
+
+def test_distillation_lowers_holdout_nll_and_student_agrees_with_teacher(point_teacher, point_planner):
+    report = point_planner.metadata["holdout"]
+    assert report["nll"] < report["nll_untrained"] - 1.0
+    assert report["landmark_distance"] < 0.25 * report["teacher_step"]
+    assert report["landmark_distance"] < 0.25 * report["landmark_distance_untrained"]
+    # On states and goals the student never saw
+    observations = rollout_observations()
+    teacher_mean, _ = teacher_goal_distribution(point_teacher, observations)
+    student = point_planner.predict(observations["achieved_goal"], observations["desired_goal"])
+    teacher_step = np.linalg.norm(teacher_mean - observations["achieved_goal"], axis=1).mean()
+    assert np.linalg.norm(student - teacher_mean, axis=1).mean() < 0.3 * teacher_step
+    assert point_planner.metadata["source_task"] == "PointGoalEnv"
+    assert point_planner.metadata["n_samples"] == 9000
+
+
+def test_distillation_is_deterministic_for_a_seed(point_teacher, point_planner):
+    same = distill_goal_planner(point_teacher, **DISTILL_KWARGS)
+    other = distill_goal_planner(point_teacher, **DISTILL_KWARGS, seed=1)
+    for name, value in point_planner.state_dict().items():
+        assert th.equal(value, same.state_dict()[name])
+    assert not all(th.equal(value, other.state_dict()[name]) for name, value in point_planner.state_dict().items())
+
+
+def test_predict_plan_save_load(point_planner, tmp_path):
+    achieved, desired = np.array([-0.5, -0.5], dtype=np.float32), np.array([0.5, 0.5], dtype=np.float32)
+    single = point_planner.predict(achieved, desired)
+    batch = point_planner.predict(np.stack([achieved] * 3), np.stack([desired] * 3))
+    assert single.shape == (2,) and batch.shape == (3, 2)
+    np.testing.assert_allclose(batch[1], single, rtol=1e-6)
+    path = point_planner.plan(achieved, desired, horizon=4)
+    assert path.shape == (4, 2)
+    np.testing.assert_allclose(path[1], point_planner.predict(path[0], desired), rtol=1e-6)
+    assert point_planner.plan(np.stack([achieved] * 3), np.stack([desired] * 3), horizon=4).shape == (3, 4, 2)
+
+    point_planner.save(tmp_path / "planner.pt")
+    loaded = GoalPlanner.load(tmp_path / "planner.pt")
+    assert loaded.metadata == point_planner.metadata
+    np.testing.assert_array_equal(loaded.plan(achieved, desired, horizon=4), path)
+
+    old = GoalPlanner(2, metadata={**point_planner.metadata, "sb3_pilot_version": "0.0.1"})
+    old.save(tmp_path / "old.pt")
+    with pytest.warns(UserWarning, match="0.0.1"):
+        GoalPlanner.load(tmp_path / "old.pt")
+    with pytest.raises(ValueError, match="shape"):
+        point_planner.predict(np.zeros(3), np.zeros(3))
+    with pytest.raises(ValueError, match="horizon"):
+        point_planner.plan(achieved, desired, horizon=0)
+
+
+def test_vec_normalize_source_gives_raw_landmarks():
+    """Goals around (5, 5): normalised ones are around 0, so raw and normalised landmarks cannot be confused."""
+    offset = 5.0
+    venv = VecNormalize(DummyVecEnv([lambda: Monitor(WallMazeEnv(offset=offset))]), norm_reward=False)
+    model = UDPO(
+        "MultiInputPolicy", venv, replay_buffer_class=HerReplayBuffer, learning_starts=300, policy_kwargs={"net_arch": [32]}
+    )
+    model.learn(600)
+    planner = distill_goal_planner(model, **DISTILL_KWARGS)
+
+    observations = {key: value[:500, 0] for key, value in model.replay_buffer.observations.items()}
+    normalised_plan = model.predict_next_state(venv.normalize_obs(observations))
+    teacher_raw = venv.unnormalize_obs(
+        {
+            "observation": normalised_plan[:, :2],
+            "achieved_goal": normalised_plan[:, 2:],
+            "desired_goal": observations["desired_goal"],
+        }
+    )["achieved_goal"]
+    student = planner.predict(observations["achieved_goal"], observations["desired_goal"])
+    assert np.abs(student - offset).max() < 2.0
+    assert np.abs(normalised_plan[:, 2:]).mean() < 2.0 < np.abs(student).mean()
+    step = np.linalg.norm(teacher_raw - observations["achieved_goal"], axis=1).mean()
+    assert np.linalg.norm(student - teacher_raw, axis=1).mean() < 0.3 * step
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    strict=True,
+    reason="UDPO's planned achieved goal is not a feasible next state: its plans cross the wall although its rollouts "
+    "go around it (measured with planner_coef 1e-2 and 1.0, 6k-10k steps); strict, so a fixed teacher is noticed",
+)
+def test_wall_maze_landmarks_go_around_the_wall():
+    model = train_udpo(WallMazeEnv, total_timesteps=6000)
+    planner = distill_goal_planner(model, n_samples=20_000, gradient_steps=2000, net_arch=[64, 64])
+    start, goal = np.array([-0.5, -0.6], dtype=np.float32), np.array([0.5, -0.6], dtype=np.float32)
+    path = planner.plan(start, goal, horizon=30)
+    path = np.concatenate([start[None], path])
+    crossings = np.flatnonzero(np.diff(np.sign(path[:, 0])) != 0)
+    assert len(crossings) > 0, f"the landmarks never reach the goal's side: {path}"
+    (x0, y0), (x1, y1) = path[crossings[0]], path[crossings[0] + 1]
+    assert y0 + (y1 - y0) * x0 / (x0 - x1) > -0.1, f"the landmarks cross the wall (gap at y > 0): {path}"
+
+
+def test_distill_refusals(point_teacher, tmp_path):
+    with pytest.raises(ValueError, match="holdout_fraction"):
+        distill_goal_planner(point_teacher, holdout_fraction=1.0)
+    with pytest.raises(ValueError, match="batch_size"):
+        distill_goal_planner(point_teacher, n_samples=100)
+    point_teacher.save(tmp_path / "teacher")
+    with pytest.raises(ValueError, match="replay buffer"):
+        distill_goal_planner(UDPO.load(tmp_path / "teacher", env=PointGoalEnv()))
+    box_model = UDPO("MlpPolicy", "Pendulum-v1", learning_starts=10)
+    with pytest.raises(ValueError, match="goal env"):
+        distill_goal_planner(box_model)
