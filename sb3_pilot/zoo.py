@@ -28,6 +28,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_pilot.envs import register_envs
 from sb3_pilot.planner import GoalPlanner
+from sb3_pilot.transfer import observation_space_mismatch
 from sb3_pilot.udpo import UDPO
 from sb3_pilot.wrappers import PilotBonusWrapper
 
@@ -125,13 +126,16 @@ class StatePlannerTransfer(BaseCallback):
                 "`normalize`, or build the target with sb3_pilot.transfer.load_planner_from."
             )
         source = UDPO.load(source_path, device=self.model.device)
+        mismatch = observation_space_mismatch(source.observation_space, self.model.observation_space)
+        if mismatch is not None:
+            raise ValueError(f"The source's state planner ({self.source}) cannot read the target's observations: {mismatch}.")
         source_planner, target_planner = source.policy.state_planner, self.model.policy.state_planner
         source_shapes = {name: tuple(value.shape) for name, value in source_planner.state_dict().items()}
         target_shapes = {name: tuple(value.shape) for name, value in target_planner.state_dict().items()}
         if source_shapes != target_shapes:
             raise ValueError(
-                f"The source's state planner ({self.source}) does not fit the target's: same observation space and "
-                f"policy_kwargs are needed (source {source_shapes}, target {target_shapes})."
+                f"The source's state planner ({self.source}) has another architecture than the target's: keep the "
+                f"source's policy_kwargs (source {source_shapes}, target {target_shapes})."
             )
         target_planner.load_state_dict(source_planner.state_dict())
         if self.freeze:

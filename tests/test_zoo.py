@@ -1,0 +1,245 @@
+"""RL-Zoo integration: the YAML in hyperparams/ (against the paper's tables) and ``python -m sb3_pilot.zoo``."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import yaml
+from rl_zoo3.exp_manager import ExperimentManager
+from stable_baselines3.common.vec_env import DummyVecEnv
+
+from sb3_pilot import UDPO
+from sb3_pilot.envs import PILOT_ENV_IDS
+from sb3_pilot.planner import GoalPlanner
+from sb3_pilot.wrappers import PilotBonusWrapper, PilotHerReplayBuffer
+from sb3_pilot.zoo import (
+    INVERSE_DYNAMICS_INTERVAL_GRID,
+    PLANNER_COEF_GRID,
+    StatePlannerTransfer,
+    _with_conf_file,
+    hyperparams_dir,
+    register,
+    sample_udpo_params,
+)
+
+HYPERPARAMS = hyperparams_dir()
+PAPER_FILES = {"udpo.yml": "udpo", "sac.yml": "sac", "sac_pilot.yml": "sac"}
+FILES = {**PAPER_FILES, **{f"cpu/{name}": algo for name, algo in PAPER_FILES.items()}}
+# Keys a CPU preset may change (hyperparams/cpu/*.yml headers)
+CPU_KEYS = {"n_timesteps", "batch_size", "buffer_size"}
+SOURCES = ("Pilot/FetchReach-v0", "Pilot/FetchPush-v0", "Pilot/Reacher-v0", "Pilot/Maze2D-v0", "Pilot/PointLocomotion-v0")
+TARGETS = (
+    "Pilot/FetchReachHighDim-v0",
+    "Pilot/FetchPushHighDim-v0",
+    "Pilot/FetchReachImage-v0",
+    "Pilot/ReacherImage-v0",
+    "Pilot/AntLocomotion-v0",
+)
+# Paper appendix tables, (buffer size, batch size, n envs, Q lr, policy lr): tb:hypers_her and tb:hypers_udpo
+# (source tasks), tb:hypers_pilot (target tasks); UDPO's extra rows (lambda, Delta) per source task.
+PAPER_HER = {
+    "Pilot/FetchReach-v0": (1e5, 128, 1, 3e-4, 3e-4),
+    "Pilot/FetchPush-v0": (1e6, 2048, 8, 3e-4, 1e-3),
+    "Pilot/Reacher-v0": (1e6, 2048, 4, 3e-4, 1e-3),
+    "Pilot/Maze2D-v0": (1e5, 128, 1, 3e-4, 3e-4),
+    "Pilot/PointLocomotion-v0": (1e6, 2048, 4, 3e-4, 3e-4),
+    "Pilot/FetchReachHighDim-v0": (1e5, 128, 1, 3e-4, 3e-4),
+    "Pilot/FetchPushHighDim-v0": (1e6, 2048, 8, 3e-4, 1e-3),
+    "Pilot/FetchReachImage-v0": (1e6, 2048, 1, 3e-4, 3e-4),
+    "Pilot/ReacherImage-v0": (1e6, 2048, 4, 3e-4, 1e-3),
+    "Pilot/AntLocomotion-v0": (1e6, 4096, 4, 3e-4, 1e-3),
+}
+PAPER_UDPO = {  # lambda, Delta
+    "Pilot/FetchReach-v0": (1e-2, 200),
+    "Pilot/FetchPush-v0": (1e-2, 200),
+    "Pilot/Reacher-v0": (1e-2, 1500),
+    "Pilot/Maze2D-v0": (1e-1, 1500),
+    "Pilot/PointLocomotion-v0": (5e-3, 1500),
+}
+UDPO_TRANSFER_SOURCES = {
+    "Pilot/FetchReachHighDim-v0": "Pilot/FetchReach-v0",
+    "Pilot/FetchPushHighDim-v0": "Pilot/FetchPush-v0",
+}
+PLANNER_SOURCES = {
+    "Pilot/FetchReachImage-v0": "Pilot/FetchReach-v0",
+    "Pilot/ReacherImage-v0": "Pilot/Reacher-v0",
+    "Pilot/AntLocomotion-v0": "Pilot/PointLocomotion-v0",
+    "Pilot/FetchReachHighDim-v0": "Pilot/FetchReach-v0",
+    "Pilot/FetchPushHighDim-v0": "Pilot/FetchPush-v0",
+}
+
+
+def load(name: str) -> dict[str, dict[str, Any]]:
+    return yaml.safe_load((HYPERPARAMS / name).read_text())
+
+
+ENTRIES = [(name, env_id) for name in FILES for env_id in load(name)]
+
+
+def test_files_and_tasks() -> None:
+    assert set(load("udpo.yml")) == {*SOURCES, *UDPO_TRANSFER_SOURCES}
+    assert set(load("sac.yml")) == set(PILOT_ENV_IDS)
+    assert set(load("sac_pilot.yml")) == set(PLANNER_SOURCES)
+    for name in PAPER_FILES:
+        assert set(load(f"cpu/{name}")) == set(load(name)), name
+
+
+@pytest.mark.parametrize("name", list(PAPER_FILES))
+def test_paper_tables(name: str) -> None:
+    """Every entry carries its row of the paper's tables (Ant-Maze, in none, takes Ant-Locomotion's)."""
+    for env_id, params in load(name).items():
+        row = PAPER_HER["Pilot/AntLocomotion-v0" if env_id == "Pilot/AntMaze-v0" else env_id]
+        _, _, _, q_lr, policy_lr = row
+        assert (params["buffer_size"], params["batch_size"], params.get("n_envs", 1)) == row[:3], env_id
+        assert params["gamma"] == 0.99 and params["learning_rate"] == q_lr, env_id
+        assert "future" in params["replay_buffer_kwargs"], env_id
+        if name == "udpo.yml":
+            planner_coef, interval = PAPER_UDPO[UDPO_TRANSFER_SOURCES.get(env_id, env_id)]
+            assert (params["planner_coef"], params["inverse_dynamics_interval"]) == (planner_coef, interval), env_id
+            assert params["planner_learning_rate"] == policy_lr, env_id
+            assert params["inverse_dynamics_learning_rate"] == 1e-4, env_id
+        if name == "sac_pilot.yml":
+            ((wrapper, kwargs),) = params["env_wrapper"][0].items()
+            assert wrapper == "sb3_pilot.zoo.pilot_bonus_wrapper" and kwargs["beta"] == 1.0, env_id
+            assert "PilotHerReplayBuffer" in params["replay_buffer_class"], env_id
+
+
+@pytest.mark.parametrize("name", list(PAPER_FILES))
+def test_cpu_presets_change_only_documented_keys(name: str) -> None:
+    paper, cpu = load(name), load(f"cpu/{name}")
+    for env_id, params in paper.items():
+        changed = {key for key in params.keys() | cpu[env_id].keys() if params.get(key) != cpu[env_id].get(key)}
+        assert changed <= CPU_KEYS, (env_id, changed)
+        assert cpu[env_id]["batch_size"] <= 256 and cpu[env_id]["n_timesteps"] <= params["n_timesteps"], env_id
+
+
+def save_planner(path: Path, source_task: str, goal_dim: int) -> str:
+    GoalPlanner(goal_dim, net_arch=[8], metadata={"source_task": source_task}).save(path)
+    return str(path)
+
+
+def experiment(tmp_path: Path, name: str, env_id: str, custom: dict[str, Any] | None = None) -> ExperimentManager:
+    """The zoo's ExperimentManager, as ``train --algo ALGO --env ENV --conf-file NAME -params CUSTOM`` builds it."""
+    return ExperimentManager(
+        argparse.Namespace(),
+        FILES[name],
+        env_id,
+        str(tmp_path / "logs"),
+        eval_freq=-1,
+        hyperparams=custom,
+        config=str(HYPERPARAMS / name),
+        seed=0,
+        verbose=0,
+        device="cpu",
+    )
+
+
+@pytest.mark.parametrize(("name", "env_id"), ENTRIES)
+def test_entry_builds_with_zoo_parser(tmp_path: Path, name: str, env_id: str) -> None:
+    """The zoo reads, pre-processes and builds every entry (buffer shrunk: the build only allocates it)."""
+    register()
+    params = load(name)[env_id]
+    custom: dict[str, Any] = {"buffer_size": 1000}
+    if "env_wrapper" in params:  # as -params env_wrapper:... would point it at an existing planner
+        ((wrapper, kwargs),) = params["env_wrapper"][0].items()
+        goal_dim = 3 if "Fetch" in env_id else 2
+        planner = save_planner(tmp_path / "planner.pt", PLANNER_SOURCES[env_id], goal_dim)
+        custom["env_wrapper"] = [{wrapper: {**kwargs, "planner": planner}}]
+    model, _ = experiment(tmp_path, name, env_id, custom).setup_experiment()
+    assert model.get_env().num_envs == params.get("n_envs", 1)
+    assert model.batch_size == params["batch_size"] and model.gamma == params["gamma"]
+    if FILES[name] == "udpo":
+        assert isinstance(model, UDPO)
+        assert model.planner_coef == params["planner_coef"]
+        assert model.inverse_dynamics_interval == params["inverse_dynamics_interval"]
+        assert model.planner_lr_schedule(1.0) == params["planner_learning_rate"]
+    if "env_wrapper" in params:
+        assert isinstance(model.replay_buffer, PilotHerReplayBuffer)
+        bonus = model.get_env().envs[0]
+        while not isinstance(bonus, PilotBonusWrapper):
+            bonus = bonus.env
+        assert bonus.beta == 1.0
+    model.get_env().close()
+
+
+def test_state_planner_transfer_hook(tmp_path: Path) -> None:
+    """The High-Dim UDPO entry copies and freezes the source's state planner when training starts."""
+    register()
+    source = UDPO("MultiInputPolicy", "Pilot/FetchReach-v0", buffer_size=100)
+    source.save(tmp_path / "source.zip")
+    callback = [{"sb3_pilot.zoo.StatePlannerTransfer": {"source": str(tmp_path / "source.zip")}}]
+    manager = experiment(tmp_path, "udpo.yml", "Pilot/FetchReachHighDim-v0", {"buffer_size": 1000, "callback": callback})
+    model, _ = manager.setup_experiment()
+    assert isinstance(manager.callbacks[0], StatePlannerTransfer)
+    model.learn(10, callback=manager.callbacks)  # fewer steps than learning_starts: no update
+    for name, value in source.policy.state_planner.state_dict().items():
+        np.testing.assert_array_equal(value.numpy(), model.policy.state_planner.state_dict()[name].numpy(), err_msg=name)
+    assert model.freeze_planner and not any(param.requires_grad for param in model.policy.state_planner.parameters())
+    wrong = [{"sb3_pilot.zoo.StatePlannerTransfer": {"source": str(tmp_path / "source.zip")}}]
+    manager = experiment(tmp_path, "udpo.yml", "Pilot/FetchPushHighDim-v0", {"buffer_size": 1000, "callback": wrong})
+    model, _ = manager.setup_experiment()
+    with pytest.raises(ValueError, match="cannot read the target's observations"):
+        model.learn(10, callback=manager.callbacks)
+
+
+def test_conf_file_defaults_and_lookup(tmp_path: Path) -> None:
+    udpo = ["--algo", "udpo", "--env", "Pilot/Maze2D-v0"]
+    assert _with_conf_file(udpo)[-2:] == ["--conf-file", str(HYPERPARAMS / "udpo.yml")]
+    assert _with_conf_file(["--algo", "sac", "--env", "Pilot/Reacher-v0"])[-1] == str(HYPERPARAMS / "sac.yml")
+    assert _with_conf_file(["--algo", "sac", "--env", "Pendulum-v1"]) == ["--algo", "sac", "--env", "Pendulum-v1"]
+    assert _with_conf_file([*udpo, "-conf", "cpu/udpo.yml"])[-1] == str(HYPERPARAMS / "cpu" / "udpo.yml")
+    own = tmp_path / "mine.yml"
+    own.write_text("{}")
+    assert _with_conf_file([*udpo, "--conf-file", str(own)]) == [*udpo, "--conf-file", str(own)]
+
+
+def test_optimize_sampler() -> None:
+    optuna = pytest.importorskip("optuna")
+    register()
+    trial = optuna.create_study().ask()
+    params = sample_udpo_params(trial, 2, 1, {"using_her_replay_buffer": True, "her_kwargs": {}})
+    assert params["planner_coef"] in PLANNER_COEF_GRID
+    assert params["inverse_dynamics_interval"] in INVERSE_DYNAMICS_INTERVAL_GRID
+    assert "gamma" in params and "net_arch" in params["policy_kwargs"]
+
+
+def run(*args: str, cwd: Path) -> str:
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    result = subprocess.run([sys.executable, *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    return result.stdout
+
+
+def test_train_enjoy_plot_cli(tmp_path: Path) -> None:
+    """``python -m sb3_pilot.zoo train`` leaves a loadable model that ``enjoy`` replays and ``plot_train`` draws."""
+    zoo = ("-m", "sb3_pilot.zoo")
+    common = ("--algo", "udpo", "--env", "Pilot/Maze2D-v0", "-f", "logs", "--num-threads", "1")
+    run(*zoo, "train", *common, "-n", "500", "--seed", "0", "--eval-freq", "-1", cwd=tmp_path)
+    model_path = tmp_path / "logs" / "udpo" / "Pilot-Maze2D-v0_1" / "Pilot-Maze2D-v0.zip"
+    model = UDPO.load(model_path, env=DummyVecEnv([lambda: gym.make("Pilot/Maze2D-v0")]), device="cpu")  # HER needs the env
+    assert model.planner_coef == 0.1 and model.num_timesteps == 500
+    out = run(*zoo, "enjoy", *common, "-n", "120", "--no-render", cwd=tmp_path)
+    assert "Success rate" in out and "2 Episodes" in out
+    pytest.importorskip("seaborn", reason="rl_zoo3's plots need seaborn and scipy (rl_zoo3[plots])")
+    png = tmp_path / "success.png"
+    plot = ("-a", "udpo", "-e", "Pilot/Maze2D-v0", "-f", "logs", "-y", "success", "-w", "1", "-o", str(png))
+    run(*zoo, "plot_train", *plot, cwd=tmp_path)
+    assert png.stat().st_size > 1000
+
+
+def test_plain_rl_zoo3_train(tmp_path: Path) -> None:
+    """The baselines run from the zoo itself: ``--gym-packages sb3_pilot`` registers the tasks."""
+    run(
+        *("-m", "rl_zoo3.train", "--algo", "sac", "--env", "Pilot/Maze2D-v0", "--gym-packages", "sb3_pilot"),
+        *("--conf-file", str(HYPERPARAMS / "sac.yml"), "-n", "200", "-f", "logs", "--eval-freq", "-1", "--num-threads", "1"),
+        cwd=tmp_path,
+    )
+    assert (tmp_path / "logs" / "sac" / "Pilot-Maze2D-v0_1" / "Pilot-Maze2D-v0.zip").is_file()
