@@ -25,6 +25,7 @@ from typing import Any
 import gymnasium as gym
 import optuna
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.save_util import load_from_zip_file
 
 from sb3_pilot.envs import register_envs
 from sb3_pilot.planner import GoalPlanner
@@ -125,19 +126,22 @@ class StatePlannerTransfer(BaseCallback):
                 "StatePlannerTransfer copies no VecNormalize statistics: train the source and the target without "
                 "`normalize`, or build the target with sb3_pilot.transfer.load_planner_from."
             )
-        source = UDPO.load(source_path, device=self.model.device)
-        mismatch = observation_space_mismatch(source.observation_space, self.model.observation_space)
+        # The policy's weights only: loading the whole source model would need its env (HER's buffer)
+        data, params, _ = load_from_zip_file(source_path, device=self.model.device)
+        mismatch = observation_space_mismatch(data["observation_space"], self.model.observation_space)
         if mismatch is not None:
             raise ValueError(f"The source's state planner ({self.source}) cannot read the target's observations: {mismatch}.")
-        source_planner, target_planner = source.policy.state_planner, self.model.policy.state_planner
-        source_shapes = {name: tuple(value.shape) for name, value in source_planner.state_dict().items()}
+        prefix = "state_planner."
+        source_state = {name[len(prefix) :]: value for name, value in params["policy"].items() if name.startswith(prefix)}
+        target_planner = self.model.policy.state_planner
+        source_shapes = {name: tuple(value.shape) for name, value in source_state.items()}
         target_shapes = {name: tuple(value.shape) for name, value in target_planner.state_dict().items()}
         if source_shapes != target_shapes:
             raise ValueError(
                 f"The source's state planner ({self.source}) has another architecture than the target's: keep the "
                 f"source's policy_kwargs (source {source_shapes}, target {target_shapes})."
             )
-        target_planner.load_state_dict(source_planner.state_dict())
+        target_planner.load_state_dict(source_state)
         if self.freeze:
             self.model.freeze_planner = True
             target_planner.requires_grad_(False)

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import yaml
 from rl_zoo3.exp_manager import ExperimentManager
+from stable_baselines3 import HerReplayBuffer
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from sb3_pilot import UDPO
@@ -173,7 +174,7 @@ def test_entry_builds_with_zoo_parser(tmp_path: Path, name: str, env_id: str) ->
 def test_state_planner_transfer_hook(tmp_path: Path) -> None:
     """The High-Dim UDPO entry copies and freezes the source's state planner when training starts."""
     register()
-    source = UDPO("MultiInputPolicy", "Pilot/FetchReach-v0", buffer_size=100)
+    source = UDPO("MultiInputPolicy", "Pilot/FetchReach-v0", buffer_size=100, replay_buffer_class=HerReplayBuffer)
     source.save(tmp_path / "source.zip")
     callback = [{"sb3_pilot.zoo.StatePlannerTransfer": {"source": str(tmp_path / "source.zip")}}]
     manager = experiment(tmp_path, "udpo.yml", "Pilot/FetchReachHighDim-v0", {"buffer_size": 1000, "callback": callback})
