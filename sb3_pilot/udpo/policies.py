@@ -287,6 +287,12 @@ class UDPOPolicy(BasePolicy):
         self.critic_target = self._make_critic()
         self.critic_target.load_state_dict(self.critic.state_dict())
         self.critic_target.set_training_mode(False)
+        self._mode_switched_modules = [
+            self,
+            *self.state_planner.modules(),
+            *self.inverse_dynamics.modules(),
+            *self.critic.modules(),
+        ]
 
         planner_lr = (self.planner_lr_schedule or lr_schedule)(1)
         inverse_dynamics_lr = (self.inverse_dynamics_lr_schedule or lr_schedule)(1)
@@ -388,10 +394,15 @@ class UDPOPolicy(BasePolicy):
         return planned if vectorized_env else planned[0]
 
     def set_training_mode(self, mode: bool) -> None:
-        self.state_planner.set_training_mode(mode)
-        self.inverse_dynamics.train(mode)
-        self.critic.set_training_mode(mode)
-        self.training = mode
+        """
+        Put the planner, the inverse dynamics and the critics in training or evaluation mode (the target critics stay in
+        evaluation mode). A no-op when already in that mode: SB3 calls this at every env step and every update.
+        """
+        if mode == self.training:
+            return
+        # What nn.Module.train(mode) does to each module, without its per-call recursion and __setattr__ checks
+        for module in self._mode_switched_modules:
+            object.__setattr__(module, "training", mode)
 
 
 MlpPolicy = UDPOPolicy

@@ -31,15 +31,14 @@ SelfUDPO = TypeVar("SelfUDPO", bound="UDPO")
 
 
 @contextmanager
-def frozen(module: nn.Module) -> Iterator[None]:
-    """Build graphs through ``module`` without computing gradients for its parameters (they stay untouched)."""
-    params = [param for param in module.parameters() if param.requires_grad]
-    for param in params:
+def frozen(parameters: list[nn.Parameter]) -> Iterator[None]:
+    """Build graphs through these parameters without computing their gradients (they stay untouched)."""
+    for param in parameters:
         param.requires_grad_(False)
     try:
         yield
     finally:
-        for param in params:
+        for param in parameters:
             param.requires_grad_(True)
 
 
@@ -237,6 +236,8 @@ class UDPO(OffPolicyAlgorithm):
         self.inverse_dynamics = self.policy.inverse_dynamics
         self.critic = self.policy.critic
         self.critic_target = self.policy.critic_target
+        self._inverse_dynamics_parameters = list(self.inverse_dynamics.parameters())
+        self._critic_parameters = list(self.critic.parameters())
 
     def train(self, gradient_steps: int, batch_size: int = 64) -> None:
         self.policy.set_training_mode(True)
@@ -258,7 +259,7 @@ class UDPO(OffPolicyAlgorithm):
             discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
 
             # The graph of the actor loss reaches the planner only: the inverse dynamics is held fixed
-            with frozen(self.inverse_dynamics):
+            with frozen(self._inverse_dynamics_parameters):
                 plan = self.policy.plan_and_act(replay_data.observations)
             log_prob = plan.log_prob.reshape(-1, 1)
 
@@ -292,7 +293,7 @@ class UDPO(OffPolicyAlgorithm):
             self.critic.optimizer.step()
 
             # Planner: SAC actor loss through the frozen inverse dynamics + lambda * NLL of the real transition
-            with frozen(self.critic):  # no critic weight gradients from the actor loss: they would be discarded
+            with frozen(self._critic_parameters):  # no critic weight gradients from the actor loss: they would be discarded
                 q_values_pi = th.cat(self.critic(replay_data.observations, plan.actions), dim=1)
             min_qf_pi, _ = th.min(q_values_pi, dim=1, keepdim=True)
             actor_loss = (ent_coef * log_prob - min_qf_pi).mean()
@@ -329,7 +330,7 @@ class UDPO(OffPolicyAlgorithm):
         :param batch_size: minibatch size
         :return: mean negative log-likelihood over the steps
         """
-        self.inverse_dynamics.train(True)
+        self.policy.set_training_mode(True)
         update_learning_rate(
             self.inverse_dynamics.optimizer, self.inverse_dynamics_lr_schedule(self._current_progress_remaining)
         )
@@ -432,6 +433,8 @@ class UDPO(OffPolicyAlgorithm):
             "planner_lr_schedule",
             "inverse_dynamics_lr_schedule",
             "_plan_errors",
+            "_inverse_dynamics_parameters",
+            "_critic_parameters",
         ]
 
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
