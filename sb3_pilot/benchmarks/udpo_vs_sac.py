@@ -73,7 +73,7 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1: robust to a busy 2-core machine)")
     parser.add_argument("--planner-coef", type=float, default=1e-2)
     parser.add_argument("--inverse-dynamics-interval", type=int, default=200)
-    parser.add_argument("--inverse-dynamics-gradient-steps", type=int, default=100)
+    parser.add_argument("--inverse-dynamics-gradient-steps", type=int, default=50)
     parser.add_argument("--inverse-dynamics-learning-rate", type=float, default=1e-3)
     args = parser.parse_args()
     th.set_num_threads(args.threads)

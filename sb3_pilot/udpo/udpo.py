@@ -1,5 +1,6 @@
 """Universal Decoupled Policy Optimisation (UDPO), the pre-training stage of PILoT (paper section 3.1)."""
 
+import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any, ClassVar, TypeVar
@@ -13,6 +14,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 from stable_baselines3.common.utils import FloatSchedule, get_parameters_by_name, polyak_update, update_learning_rate
+from stable_baselines3.common.vec_env import VecNormalize
 from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
 from torch import nn
 from torch.nn import functional as F
@@ -131,7 +133,7 @@ class UDPO(OffPolicyAlgorithm):
         target_entropy: str | float = "auto",
         planner_coef: float = 1e-2,
         inverse_dynamics_interval: int = 1500,
-        inverse_dynamics_gradient_steps: int = 100,
+        inverse_dynamics_gradient_steps: int = 50,
         planner_learning_rate: float | Schedule | None = None,
         inverse_dynamics_learning_rate: float | Schedule | None = 1e-4,
         stats_window_size: int = 100,
@@ -404,6 +406,33 @@ class UDPO(OffPolicyAlgorithm):
         :return: the planned next state (``observation`` + ``achieved_goal`` for Dict observations)
         """
         return self.policy.predict_next_state(observation, deterministic=deterministic)
+
+    @classmethod
+    def load_planner_from(
+        cls: type[SelfUDPO],
+        source: "UDPO | str | os.PathLike",
+        env: GymEnv | str,
+        freeze: bool = True,
+        source_vec_normalize: VecNormalize | str | os.PathLike | None = None,
+        **kwargs: Any,
+    ) -> SelfUDPO:
+        """
+        Build a UDPO for ``env`` whose state planner is copied from ``source`` and whose inverse dynamics is learned
+        from scratch: PILoT's transfer to another action space (the High-Dim-Action challenge).
+
+        See :func:`sb3_pilot.transfer.load_planner_from` for the checks (planner-state size, observation space,
+        ``VecNormalize`` statistics carried over).
+
+        :param source: a trained UDPO or the path of its zip
+        :param env: the target environment (same observation space, any Box action space)
+        :param freeze: keep the transferred planner fixed during training
+        :param source_vec_normalize: the source's ``VecNormalize`` (or its saved path) if it was trained with one
+        :param kwargs: keyword arguments of the target UDPO
+        :return: the target model
+        """
+        from sb3_pilot.transfer import load_planner_from  # the transfer stage builds on this module
+
+        return load_planner_from(cls, source, env, freeze=freeze, source_vec_normalize=source_vec_normalize, **kwargs)
 
     def learn(
         self: SelfUDPO,
