@@ -122,14 +122,19 @@ class GoalPlanner(nn.Module):
         self.goal_std.copy_(goals.std(dim=0).clamp_min(1e-6))
         self.delta_scale.copy_(deltas.abs().mean(dim=0).clamp_min(1e-6))
 
+    def _outputs(self, achieved_goal: th.Tensor, desired_goal: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """Standardise the inputs and run the network: scaled mean and log-std of ``g' - g``."""
+        inputs = th.cat([achieved_goal - self.goal_mean, desired_goal - self.goal_mean], dim=-1) / self.goal_std.repeat(2)
+        delta_mean, log_std = self.net(inputs).chunk(2, dim=-1)
+        return delta_mean, log_std
+
     def distribution_params(self, achieved_goal: th.Tensor, desired_goal: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
         """
         :param achieved_goal: current goals ``g``, shape (n, goal_dim), raw coordinates
         :param desired_goal: target goals ``g_target``, same shape
         :return: mean and log-std of the Gaussian over ``g' - g``, raw coordinates
         """
-        inputs = th.cat([achieved_goal - self.goal_mean, desired_goal - self.goal_mean], dim=-1) / self.goal_std.repeat(2)
-        delta_mean, log_std = self.net(inputs).chunk(2, dim=-1)
+        delta_mean, log_std = self._outputs(achieved_goal, desired_goal)
         return delta_mean * self.delta_scale, th.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX) + th.log(self.delta_scale)
 
     def nll(self, next_goal: th.Tensor, achieved_goal: th.Tensor, desired_goal: th.Tensor) -> th.Tensor:
@@ -139,10 +144,10 @@ class GoalPlanner(nn.Module):
 
     def forward(self, achieved_goal: th.Tensor, desired_goal: th.Tensor, deterministic: bool = True) -> th.Tensor:
         """Next goal ``g'`` (the mean if ``deterministic``, else a sample)."""
+        if deterministic:  # the hot path of the reward bonus: the mean only
+            return achieved_goal + self._outputs(achieved_goal, desired_goal)[0] * self.delta_scale
         delta_mean, log_std = self.distribution_params(achieved_goal, desired_goal)
-        if not deterministic:
-            delta_mean = delta_mean + th.randn_like(delta_mean) * th.exp(log_std)
-        return achieved_goal + delta_mean
+        return achieved_goal + delta_mean + th.randn_like(delta_mean) * th.exp(log_std)
 
     def _to_tensor(self, goals: np.ndarray, name: str) -> th.Tensor:
         goals = np.asarray(goals, dtype=np.float32)
@@ -163,7 +168,7 @@ class GoalPlanner(nn.Module):
         desired = self._to_tensor(desired_goal, "desired_goal")
         if achieved.shape != desired.shape:
             raise ValueError(f"achieved_goal and desired_goal shapes differ: {achieved.shape} vs {desired.shape}.")
-        with th.no_grad():
+        with th.inference_mode():
             next_goal = self(achieved, desired, deterministic=deterministic).cpu().numpy()
         return next_goal.reshape(np.shape(achieved_goal))
 

@@ -3,7 +3,7 @@ Cost of PilotBonusWrapper: SAC + HER training steps/s on a wrapped task relative
 
 Both models are built once and trained in alternating chunks in the same process (so machine load hits both
 alike); the ratio is wrapped steps/s over unwrapped steps/s. The wrapped run uses PilotHerReplayBuffer and an
-untrained goal planner of the default distillation size (its weights do not change its cost).
+untrained goal planner (default: the default distillation size; its weights do not change its cost).
 
     python -m sb3_pilot.benchmarks.bonus_overhead --env Pilot/Maze2D-v0 --rounds 4 --chunk 1000
 """
@@ -43,12 +43,13 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=4, help="timed chunks per variant")
     parser.add_argument("--chunk", type=int, default=1000, help="env steps per timed chunk")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--planner-net-arch", type=int, nargs="+", default=[256, 256], help="hidden layers of the planner")
     args = parser.parse_args()
     register_envs()
 
     env = gym.make(args.env)
     goal_dim = env.observation_space["desired_goal"].shape[0]
-    planner = GoalPlanner(goal_dim, metadata={"source_task": args.env})
+    planner = GoalPlanner(goal_dim, args.planner_net_arch, metadata={"source_task": args.env})
     models = {
         "plain": make_sac(env, HerReplayBuffer, args.seed),
         "bonus": make_sac(PilotBonusWrapper(gym.make(args.env), planner), PilotHerReplayBuffer, args.seed),
