@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -25,14 +26,18 @@ from sb3_pilot.udpo import UDPO
 from sb3_pilot.wrappers import SIMILARITIES, PilotBonusWrapper, PilotHerReplayBuffer
 
 ENV_ID = "Pilot/Maze2D-v0"
+
+
 # Small RL-Zoo-like settings shared by the source and the targets
-COMMON_KWARGS = {
-    "learning_starts": 1000,
-    "batch_size": 256,
-    "gamma": 0.95,
-    "learning_rate": 1e-3,
-    "policy_kwargs": {"net_arch": [64, 64]},
-}
+def common_kwargs() -> dict[str, Any]:
+    """Fresh settings (SB3 writes into ``policy_kwargs``, so models must not share the dict)."""
+    return {
+        "learning_starts": 1000,
+        "batch_size": 256,
+        "gamma": 0.95,
+        "learning_rate": 1e-3,
+        "policy_kwargs": {"net_arch": [64, 64]},
+    }
 
 
 def success_rate(model: BaseAlgorithm, env: gym.Env, n_episodes: int, seed: int) -> float:
@@ -59,7 +64,7 @@ def train_source(steps: int, goal_distribution: str, seed: int) -> GoalPlanner:
         inverse_dynamics_learning_rate=1e-3,
         inverse_dynamics_gradient_steps=50,
         seed=seed,
-        **COMMON_KWARGS,
+        **common_kwargs(),
     )
     model.learn(steps)
     eval_env = gym.make(ENV_ID, goal_distribution=goal_distribution)
@@ -75,7 +80,7 @@ def curve(variant: str, planner: GoalPlanner, args: argparse.Namespace, seed: in
     buffer_class = HerReplayBuffer
     if variant != "her":
         env, buffer_class = PilotBonusWrapper(env, planner, beta=args.beta, similarity=variant), PilotHerReplayBuffer
-    model = SAC("MultiInputPolicy", env, replay_buffer_class=buffer_class, seed=seed, **COMMON_KWARGS)
+    model = SAC("MultiInputPolicy", env, replay_buffer_class=buffer_class, seed=seed, **common_kwargs())
     eval_env = gym.make(ENV_ID, goal_distribution=args.goal_distribution)
     rates = []
     for _ in range(args.steps // args.eval_freq):

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -26,14 +27,20 @@ from sb3_pilot.transfer import load_planner_from
 from sb3_pilot.udpo import UDPO
 
 SOURCE_ID, TARGET_ID = "Pilot/FetchReach-v0", "Pilot/FetchReachHighDim-v0"
-COMMON_KWARGS = {
-    "replay_buffer_class": HerReplayBuffer,
-    "learning_starts": 1000,
-    "batch_size": 256,
-    "gamma": 0.95,
-    "learning_rate": 1e-3,
-    "policy_kwargs": {"net_arch": [64, 64]},
-}
+
+
+def common_kwargs() -> dict[str, Any]:
+    """Fresh settings (SB3 writes into ``policy_kwargs``, so models must not share the dict)."""
+    return {
+        "replay_buffer_class": HerReplayBuffer,
+        "learning_starts": 1000,
+        "batch_size": 256,
+        "gamma": 0.95,
+        "learning_rate": 1e-3,
+        "policy_kwargs": {"net_arch": [64, 64]},
+    }
+
+
 UDPO_KWARGS = {"inverse_dynamics_interval": 200, "inverse_dynamics_learning_rate": 1e-3, "inverse_dynamics_gradient_steps": 50}
 
 
@@ -76,14 +83,14 @@ def main() -> None:
     results: dict[str, list[list[float]]] = {"pilot_transfer": [], "sac_her": []}
     for seed in args.seeds:
         source_env = VecNormalize(make_vec_env(SOURCE_ID, seed=seed), norm_reward=False)
-        source = UDPO("MultiInputPolicy", source_env, seed=seed, **COMMON_KWARGS, **UDPO_KWARGS)
+        source = UDPO("MultiInputPolicy", source_env, seed=seed, **common_kwargs(), **UDPO_KWARGS)
         source.learn(args.source_steps)
         print(f"seed {seed}: source UDPO success {success_rate(source, SOURCE_ID, args.eval_episodes):.2f}", flush=True)
-        target = load_planner_from(UDPO, source, gym.make(TARGET_ID), seed=seed, **COMMON_KWARGS, **UDPO_KWARGS)
+        target = load_planner_from(UDPO, source, gym.make(TARGET_ID), seed=seed, **common_kwargs(), **UDPO_KWARGS)
         results["pilot_transfer"].append(learning_curve(target, TARGET_ID, args))
         scratch_env = VecNormalize(make_vec_env(TARGET_ID, seed=seed), norm_reward=False)
         results["sac_her"].append(
-            learning_curve(SAC("MultiInputPolicy", scratch_env, seed=seed, **COMMON_KWARGS), TARGET_ID, args)
+            learning_curve(SAC("MultiInputPolicy", scratch_env, seed=seed, **common_kwargs()), TARGET_ID, args)
         )
         print(f"seed {seed}: { ({name: curves[-1] for name, curves in results.items()}) }", flush=True)
 
