@@ -1,0 +1,376 @@
+"""
+The stages of a transfer challenge and the one runner that chains them.
+
+A challenge is a list of stages run once per seed: :class:`ZooTrain` (a ``python -m sb3_pilot.zoo train`` run),
+:class:`Distill` (:func:`~sb3_pilot.distill_goal_planner` on a trained UDPO) and :class:`Guidance` (a pre-trained
+controller guided by a goal planner, :class:`~sb3_pilot.LandmarkGuidance`, with no training). Each stage writes
+into its own folder ``<root>/<challenge>/models/seed_<k>/<stage>/`` (``models/`` is gitignored) and, when it has
+finished, a marker ``stage.json`` holding the hash of its configuration (its settings, its budget and the hashes
+of the stages it reads from). A stage whose marker matches is skipped on the next run; one without (interrupted)
+or with another hash is removed and run again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shlex
+import shutil
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import yaml
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.logger import configure
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+from sb3_pilot.distill import distill_goal_planner
+from sb3_pilot.planner import GoalPlanner
+from sb3_pilot.udpo import UDPO
+from sb3_pilot.wrappers import LandmarkGuidance
+from sb3_pilot.zoo import hyperparams_dir
+
+#: Marker a finished stage leaves in its folder.
+STAGE_MARKER = "stage.json"
+#: Hyperparameters of a zoo stage computed from the outputs of earlier stages (``{stage name: path}``).
+Params = Callable[[dict[str, Path]], dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class Budget:
+    """
+    How much a challenge run may spend, shared by the four challenges (their step counts are their own).
+
+    :param name: ``smoke``, ``cpu``, ``paper`` or a custom name
+    :param conf_dir: folder of ``hyperparams/`` the zoo stages read (``"cpu/"`` for the CPU presets, ``""``)
+    :param n_evals: evaluations per training run (the zoo's ``--eval-freq`` is ``steps // n_evals``)
+    :param eval_episodes: episodes per evaluation (the zoo's ``--eval-episodes``) and of a guidance stage
+    :param distill: keyword arguments of :func:`~sb3_pilot.distill_goal_planner`
+    :param hyperparams: overrides of every zoo stage (``-params``), e.g. small networks for ``smoke``
+    :param fast: apply each challenge's ``fast_hyperparams`` (settings measured to learn quickly on this machine)
+    """
+
+    name: str
+    conf_dir: str
+    n_evals: int
+    eval_episodes: int
+    distill: dict[str, Any]
+    hyperparams: dict[str, Any] = field(default_factory=dict)
+    fast: bool = True
+
+
+@dataclass
+class StageContext:
+    """
+    What a stage needs to run: where, for which seed, at which budget, and the outputs of earlier stages.
+
+    :param seed_dir: ``<root>/<challenge>/models/seed_<k>``
+    :param seed: the random seed
+    :param budget: the budget
+    :param steps: env steps of each stage at this budget (None: the YAML's ``n_timesteps``)
+    :param fast_hyperparams: the challenge's ``fast_hyperparams`` if the budget applies them, else empty
+    :param outputs: main output file of each finished stage (model zip, planner file, result file)
+    :param progress: show progress bars
+    :param verbose: verbosity of the zoo and of SB3 (0 or 1)
+    """
+
+    seed_dir: Path
+    seed: int
+    budget: Budget
+    steps: dict[str, int | None]
+    fast_hyperparams: dict[str, dict[str, Any]]
+    outputs: dict[str, Path] = field(default_factory=dict)
+    progress: bool = False
+    verbose: int = 0
+
+
+class CSVLogger(BaseCallback):
+    """
+    Zoo callback: SB3's logger writes ``progress.csv`` in ``folder`` (the zoo itself only logs to stdout and
+    TensorBoard), so that UDPO's ``rollout/plan_error`` can be plotted over training.
+
+    :param folder: where ``progress.csv`` goes
+    :param verbose: verbosity level
+    """
+
+    def __init__(self, folder: str, verbose: int = 0):
+        super().__init__(verbose)
+        self.folder = folder
+
+    def _init_callback(self) -> None:
+        formats = ["csv", "stdout"] if self.model.verbose >= 1 else ["csv"]
+        self.model.set_logger(configure(self.folder, formats))
+
+    def _on_step(self) -> bool:
+        return True
+
+
+def zoo_run_dir(stage_dir: Path, algo: str, env_id: str) -> Path:
+    """Folder where the zoo saves the first run of ``algo`` on ``env_id`` with ``-f stage_dir``."""
+    return stage_dir / algo / f"{env_id.replace('/', '-')}_1"
+
+
+def load_zoo_model(model_path: Path, env: DummyVecEnv | None = None) -> tuple[BaseAlgorithm, VecNormalize | None]:
+    """
+    Load a model the zoo saved, with its ``VecNormalize`` statistics if it has some.
+
+    :param model_path: ``<run folder>/<env name>.zip``
+    :param env: the env to attach (needed to load the replay buffer); None loads the policy alone (no buffer)
+    :return: the model and its (frozen) ``VecNormalize`` or None
+    """
+    from rl_zoo3 import ALGOS
+
+    algo = model_path.parent.parent.name
+    stats = model_path.parent / model_path.stem / "vecnormalize.pkl"
+    vec_normalize = None
+    if stats.exists():
+        vec_normalize = VecNormalize.load(str(stats), env or DummyVecEnv([lambda: gym.make(_env_id(model_path))]))
+        vec_normalize.training = False
+    if env is None:  # a HER buffer cannot be built without the env: the policy alone
+        custom = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}
+        return ALGOS[algo].load(model_path, device="cpu", custom_objects=custom), vec_normalize
+    return ALGOS[algo].load(model_path, env=vec_normalize or env, device="cpu"), vec_normalize
+
+
+def _env_id(model_path: Path) -> str:
+    """``Pilot/X-v0`` from the zoo's ``.../Pilot-X-v0.zip``."""
+    return model_path.stem.replace("-", "/", 1)
+
+
+@dataclass(frozen=True)
+class ZooTrain:
+    """
+    A training run of the zoo: ``python -m sb3_pilot.zoo train --algo ALGO --env ENV --conf-file BUDGET/CONF ...``.
+
+    :param name: stage name (folder name, key of its output)
+    :param algo: zoo algorithm (``udpo``, ``sac``)
+    :param env_id: task
+    :param conf_file: YAML in ``hyperparams/`` (the budget's ``conf_dir`` is prepended)
+    :param params: ``-params`` computed from earlier stages' outputs (planner paths, transfer callbacks)
+    :param needs: stages whose outputs ``params`` reads
+    :param method: label in the summary if this stage is a compared method on the target task
+    :param save_replay_buffer: keep the replay buffer (a later :class:`Distill` reads it)
+    """
+
+    name: str
+    algo: str
+    env_id: str
+    conf_file: str
+    params: Params | None = None
+    needs: tuple[str, ...] = ()
+    method: str | None = None
+    save_replay_buffer: bool = False
+
+    def output(self, stage_dir: Path) -> Path:
+        """The trained model's zip."""
+        run_dir = zoo_run_dir(stage_dir, self.algo, self.env_id)
+        return run_dir / f"{self.env_id.replace('/', '-')}.zip"
+
+    def zoo_args(self, ctx: StageContext, stage_dir: Path) -> list[str]:
+        """Arguments of ``python -m sb3_pilot.zoo`` for this stage (but verbosity and progress bar)."""
+        conf_file = ctx.budget.conf_dir + self.conf_file
+        entry = yaml.safe_load((hyperparams_dir() / conf_file).read_text())[self.env_id]
+        steps = ctx.steps.get(self.name) or int(entry["n_timesteps"])
+        hyperparams: dict[str, Any] = {
+            # a buffer larger than the run is never filled: allocate (and save) only what is used
+            "buffer_size": min(int(entry["buffer_size"]), max(steps, 1000)),
+            **ctx.fast_hyperparams.get("*", {}),
+            **ctx.fast_hyperparams.get(self.algo, {}),
+            **ctx.budget.hyperparams,
+            **(self.params(ctx.outputs) if self.params else {}),
+        }
+        # HER cannot sample before an episode has ended: SB3's default (100) is too early with 4 x 500-step envs
+        first_episodes = entry.get("n_envs", 1) * (gym.spec(self.env_id).max_episode_steps or 1)
+        if first_episodes > hyperparams.get("learning_starts", entry.get("learning_starts", 100)):
+            hyperparams["learning_starts"] = first_episodes
+        callbacks = [{f"{__name__}.CSVLogger": {"folder": str(stage_dir)}}, *hyperparams.pop("callback", [])]
+        hyperparams["callback"] = callbacks
+        args = ["train", "--algo", self.algo, "--env", self.env_id, "--conf-file", conf_file, "-f", str(stage_dir)]
+        args += ["--seed", str(ctx.seed), "-n", str(steps), "--num-threads", "1"]
+        args += ["--eval-freq", str(max(steps // ctx.budget.n_evals, 1)), "--eval-episodes", str(ctx.budget.eval_episodes)]
+        args += ["-params", *(f"{key}:{value!r}" for key, value in hyperparams.items())]
+        return [*args, "--save-replay-buffer"] if self.save_replay_buffer else args
+
+    def config(self, ctx: StageContext, stage_dir: Path) -> dict[str, Any]:
+        """What decides the stage's result (hashed for resuming): its zoo command line."""
+        return {"zoo": self.zoo_args(ctx, stage_dir)}
+
+    def describe(self, ctx: StageContext, stage_dir: Path) -> str:
+        """One line for the progress display."""
+        return f"{self.algo} on {self.env_id}: python -m sb3_pilot.zoo {shlex.join(self.zoo_args(ctx, stage_dir))}"
+
+    def run(self, ctx: StageContext, stage_dir: Path) -> None:
+        """Train through the zoo (in this process)."""
+        from sb3_pilot import zoo
+
+        zoo.main([*self.zoo_args(ctx, stage_dir), "--verbose", str(ctx.verbose), *(["--progress"] if ctx.progress else [])])
+
+    def curve(self, stage_dir: Path) -> tuple[list[int], list[float]]:
+        """Success rate of the zoo's evaluations (``evaluations.npz``) against env steps."""
+        evaluations = np.load(zoo_run_dir(stage_dir, self.algo, self.env_id) / "evaluations.npz")
+        return evaluations["timesteps"].tolist(), evaluations["successes"].mean(axis=1).tolist()
+
+
+@dataclass(frozen=True)
+class Distill:
+    """
+    Distil the state planner of a UDPO stage (trained with ``save_replay_buffer``) into a goal planner, saved as
+    ``planner.pt``; the held-out agreement with the teacher goes to ``distill.json``.
+
+    :param name: stage name
+    :param source: the UDPO :class:`ZooTrain` stage
+    """
+
+    name: str
+    source: str
+    method = None
+
+    @property
+    def needs(self) -> tuple[str, ...]:
+        return (self.source,)
+
+    def output(self, stage_dir: Path) -> Path:
+        """The goal planner's file."""
+        return stage_dir / "planner.pt"
+
+    def config(self, ctx: StageContext, stage_dir: Path) -> dict[str, Any]:
+        return {"source": str(ctx.outputs[self.source]), "seed": ctx.seed, **ctx.budget.distill}
+
+    def describe(self, ctx: StageContext, stage_dir: Path) -> str:
+        return f"distil the goal planner of {ctx.outputs[self.source]}"
+
+    def run(self, ctx: StageContext, stage_dir: Path) -> None:
+        """Load the teacher with its replay buffer, distil, save."""
+        model_path = ctx.outputs[self.source]
+        env_id = _env_id(model_path)
+        teacher, _ = load_zoo_model(model_path, env=DummyVecEnv([lambda: gym.make(env_id)]))
+        assert isinstance(teacher, UDPO)
+        teacher.load_replay_buffer(model_path.parent / "replay_buffer.pkl")
+        planner = distill_goal_planner(
+            teacher, source_task=env_id, seed=ctx.seed, progress_bar=ctx.progress, verbose=ctx.verbose, **ctx.budget.distill
+        )
+        stage_dir.mkdir(parents=True, exist_ok=True)
+        planner.save(self.output(stage_dir))
+        (stage_dir / "distill.json").write_text(json.dumps(planner.metadata["holdout"], indent=2))
+
+
+@dataclass(frozen=True)
+class Guidance:
+    """
+    Zero-shot transfer: a controller of an earlier stage, shown the landmarks of a distilled goal planner
+    (:class:`~sb3_pilot.LandmarkGuidance`), evaluated on ``env_id`` with no training there. The success rate
+    and the first episode's path and landmarks go to ``guidance.json``.
+
+    :param name: stage name
+    :param planner: the :class:`Distill` stage
+    :param controller: the :class:`ZooTrain` stage of the controller
+    :param env_id: the task it is evaluated on
+    :param method: label in the summary
+    :param horizon: chained planner steps to the landmark (``LandmarkGuidance``'s ``horizon``)
+    """
+
+    name: str
+    planner: str
+    controller: str
+    env_id: str
+    method: str
+    horizon: int = 4
+
+    @property
+    def needs(self) -> tuple[str, ...]:
+        return (self.planner, self.controller)
+
+    def output(self, stage_dir: Path) -> Path:
+        """The evaluation's result file."""
+        return stage_dir / "guidance.json"
+
+    def config(self, ctx: StageContext, stage_dir: Path) -> dict[str, Any]:
+        return {
+            "planner": str(ctx.outputs[self.planner]),
+            "controller": str(ctx.outputs[self.controller]),
+            "env_id": self.env_id,
+            "horizon": self.horizon,
+            "episodes": ctx.budget.eval_episodes,
+            "seed": ctx.seed,
+        }
+
+    def describe(self, ctx: StageContext, stage_dir: Path) -> str:
+        return f"guide {ctx.outputs[self.controller].name} with the landmarks of the planner on {self.env_id}, 0 steps"
+
+    def run(self, ctx: StageContext, stage_dir: Path) -> None:
+        """Run the guided controller for the budget's ``eval_episodes`` (deterministic actions)."""
+        controller, vec_normalize = load_zoo_model(ctx.outputs[self.controller])
+        env = LandmarkGuidance(gym.make(self.env_id), GoalPlanner.load(ctx.outputs[self.planner]), horizon=self.horizon)
+        successes, episodes = [], []
+        for episode in range(ctx.budget.eval_episodes):
+            observation, _ = env.reset(seed=10_000 * ctx.seed + episode)
+            done, info = False, {}
+            while not done:
+                seen = vec_normalize.normalize_obs(observation) if vec_normalize is not None else observation
+                action, _ = controller.predict(seen, deterministic=True)
+                observation, _, terminated, truncated, info = env.step(action)
+                done = terminated or truncated
+            successes.append(float(info["is_success"]))
+            episodes.append(
+                {
+                    "achieved_goals": env.episode_achieved_goals.tolist(),
+                    "landmarks": env.episode_landmarks.tolist(),
+                    "desired_goal": np.asarray(info["real_desired_goal"]).tolist(),
+                }
+            )
+        stage_dir.mkdir(parents=True, exist_ok=True)
+        result = {"timesteps": [0], "success_rate": [float(np.mean(successes))], "successes": successes}
+        self.output(stage_dir).write_text(json.dumps({**result, "episodes": episodes}))
+
+    def curve(self, stage_dir: Path) -> tuple[list[int], list[float]]:
+        """One point: the success rate after 0 steps on the task."""
+        result = json.loads(self.output(stage_dir).read_text())
+        return result["timesteps"], result["success_rate"]
+
+
+Stage = ZooTrain | Distill | Guidance
+
+
+def config_hash(config: dict[str, Any], needs_hashes: list[str]) -> str:
+    """Hash of a stage's configuration and of the hashes of the stages it reads from."""
+    text = json.dumps({"config": config, "needs": needs_hashes}, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def run_stage(stage: Stage, ctx: StageContext, hashes: dict[str, str], label: str) -> dict[str, Any]:
+    """
+    Run one stage unless its marker says it already ran with this configuration.
+
+    :param stage: the stage
+    :param ctx: its context (``ctx.outputs`` gets the stage's output)
+    :param hashes: configuration hashes of the stages run so far for this seed (gets this stage's)
+    :param label: prefix of the progress line
+    :return: the stage's marker (``config_hash``, ``config``, ``wall_time_s``, ``skipped``)
+    """
+    stage_dir = ctx.seed_dir / stage.name
+    config = stage.config(ctx, stage_dir)
+    digest = config_hash(config, [hashes[name] for name in stage.needs])
+    hashes[stage.name] = digest
+    marker_path = stage_dir / STAGE_MARKER
+    if marker_path.exists():
+        marker = json.loads(marker_path.read_text())
+        if marker["config_hash"] == digest:
+            print(f"{label} {stage.name}: done ({marker['wall_time_s']:.0f} s), skipped", flush=True)
+            ctx.outputs[stage.name] = stage.output(stage_dir)
+            return {**marker, "skipped": True}
+    if stage_dir.exists():  # interrupted, or configured differently: start over
+        shutil.rmtree(stage_dir)
+    print(f"{label} {stage.name}: {stage.describe(ctx, stage_dir)}", flush=True)
+    start = time.perf_counter()
+    stage.run(ctx, stage_dir)
+    marker = {"config_hash": digest, "config": config, "wall_time_s": time.perf_counter() - start}
+    marker_path.write_text(json.dumps(marker, indent=2, default=str))
+    print(f"{label} {stage.name}: finished in {marker['wall_time_s']:.0f} s", flush=True)
+    ctx.outputs[stage.name] = stage.output(stage_dir)
+    return {**marker, "skipped": False}

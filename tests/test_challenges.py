@@ -1,0 +1,120 @@
+"""The four transfer challenges end to end at the ``smoke`` budget, resuming, summary.json, plots and the demo."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from sb3_pilot.challenges import CHALLENGES, run_challenge, steps_to
+from sb3_pilot.challenges.__main__ import main as challenges_main
+from sb3_pilot.challenges.stages import STAGE_MARKER
+from sb3_pilot.demo import main as demo_main
+from sb3_pilot.plots import main as plots_main
+
+
+def check_summary(summary: dict[str, Any], name: str, run_dir: Path) -> None:
+    """The schema of summary.json, and that it is what run_challenge returned."""
+    assert json.loads((run_dir / "summary.json").read_text()) == summary
+    challenge = CHALLENGES[name]
+    assert summary["challenge"] == name and summary["budget"] == "smoke" and summary["seeds"] == [0]
+    assert summary["target_env"] == challenge.target_env and summary["thresholds"] == [0.5, 0.9]
+    assert set(summary["methods"]) == {stage.method for stage in challenge.stages if stage.method is not None}
+    for result in summary["methods"].values():
+        assert result["env_id"] == challenge.target_env
+        for curve in (*result["runs"], result["mean"]):
+            assert len(curve["timesteps"]) == len(curve["success_rate"]) >= 1
+            assert all(0.0 <= rate <= 1.0 for rate in curve["success_rate"])
+            assert {"steps_to_50", "steps_to_90"} <= set(curve)
+        assert [run["seed"] for run in result["runs"]] == [0]
+    assert set(summary["stages"]) == {f"seed_0/{stage.name}" for stage in challenge.stages}
+    for stage in summary["stages"].values():
+        assert len(stage["config_hash"]) == 16 and stage["wall_time_s"] >= 0
+    assert summary["wall_time_s"] > 0
+    # models and the zoo's logs stay under models/ (gitignored), results next to it
+    assert not list(run_dir.glob("*.zip")) and list((run_dir / "models").rglob("*.zip"))
+
+
+def check_pngs(run_dir: Path, expected: set[str]) -> None:
+    plots_main([str(run_dir)])
+    for name in expected:
+        assert (run_dir / name).stat().st_size > 10_000, name
+
+
+def test_steps_to() -> None:
+    assert steps_to([100, 200, 300], [0.2, 0.6, 0.95]) == {"steps_to_50": 200, "steps_to_90": 300}
+    assert steps_to([100, 200], [0.0, 0.5]) == {"steps_to_50": 200, "steps_to_90": None}
+
+
+def test_unknown_challenge(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="Unknown challenge"):
+        run_challenge("nope", root=tmp_path)
+    with pytest.raises(SystemExit):
+        challenges_main(["nope"])
+
+
+def test_high_dim_action_smoke_resume_and_plots(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """UDPO source -> transferred planner vs SAC+HER, through the zoo; a rerun skips every stage."""
+    challenges_main(["high-dim-action", "--budget", "smoke", "--root", str(tmp_path), "--no-progress"])
+    run_dir = tmp_path / "high-dim-action"
+    summary = json.loads((run_dir / "summary.json").read_text())
+    check_summary(summary, "high-dim-action", run_dir)
+    pilot = summary["stages"]["seed_0/pilot"]["config"]["zoo"]
+    assert "sb3_pilot.zoo.StatePlannerTransfer" in pilot[-1] and "--conf-file" in pilot
+    marker = run_dir / "models" / "seed_0" / "source" / STAGE_MARKER
+    marker_time = marker.stat().st_mtime
+    capsys.readouterr()
+
+    again = run_challenge("high-dim-action", "smoke", root=tmp_path)
+    out = capsys.readouterr().out
+    assert out.count("skipped") == 3 and marker.stat().st_mtime == marker_time
+    assert again["methods"] == summary["methods"]
+
+    # another step count for the baseline only: the baseline reruns, the other stages do not
+    rerun = run_challenge("high-dim-action", "smoke", root=tmp_path, steps={"her": 200})
+    out = capsys.readouterr().out
+    assert out.count("skipped") == 2 and "seed 0 her: finished" in out
+    assert rerun["methods"]["SAC+HER (scratch)"]["runs"][0]["timesteps"][-1] == 200
+
+    # an interrupted stage (no marker) is redone from scratch
+    (run_dir / "models" / "seed_0" / "her" / STAGE_MARKER).unlink()
+    run_challenge("high-dim-action", "smoke", root=tmp_path, steps={"her": 200})
+    assert "seed 0 her: finished" in capsys.readouterr().out
+    check_pngs(run_dir, {"success.png", "plan_error.png"})
+
+
+def test_zero_shot_ant_maze_smoke(tmp_path: Path) -> None:
+    """Maze2D UDPO -> distilled planner guiding an Ant-Locomotion controller on Ant-Maze (0 steps) vs SAC+HER."""
+    summary = run_challenge("zero-shot-ant-maze", "smoke", root=tmp_path)
+    run_dir = tmp_path / "zero-shot-ant-maze"
+    check_summary(summary, "zero-shot-ant-maze", run_dir)
+    zero_shot = summary["methods"]["PILoT zero-shot (0 Ant-Maze steps)"]
+    assert zero_shot["mean"]["timesteps"] == [0]
+    guidance = json.loads((run_dir / "models" / "seed_0" / "pilot" / "guidance.json").read_text())
+    episode = guidance["episodes"][0]
+    assert len(episode["achieved_goals"]) == len(episode["landmarks"]) == 501  # reset + 500 steps
+    holdout = json.loads((run_dir / "models" / "seed_0" / "distill" / "distill.json").read_text())
+    assert holdout["nll"] < holdout["nll_untrained"]
+    check_pngs(run_dir, {"success.png", "plan_error.png", "landmarks.png"})
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["vec-to-image", "complex-morph"])
+def test_bonus_challenges_smoke(tmp_path: Path, name: str) -> None:
+    """UDPO source -> distilled planner -> HER + PILoT bonus vs SAC+HER (image rendering, the Ant: slow)."""
+    summary = run_challenge(name, "smoke", root=tmp_path)
+    run_dir = tmp_path / name
+    check_summary(summary, name, run_dir)
+    pilot = summary["stages"]["seed_0/pilot"]["config"]["zoo"]
+    assert "sb3_pilot.zoo.pilot_bonus_wrapper" in " ".join(pilot) and "sac_pilot.yml" in " ".join(pilot)
+    check_pngs(run_dir, {"success.png", "plan_error.png"})
+
+
+def test_demo_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The demo's code path at a tiny budget (the real demo takes minutes)."""
+    demo_main(["--root", str(tmp_path), "--source-steps", "300", "--steps", "200"])
+    out = capsys.readouterr().out
+    assert "PILoT" in out and "SAC+HER" in out and "Wall time" in out
+    assert (tmp_path / "high-dim-action" / "success.png").stat().st_size > 10_000
