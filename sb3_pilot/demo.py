@@ -61,7 +61,10 @@ def main(argv: list[str] | None = None) -> None:
     elif area["PILoT"] < area["SAC+HER"]:
         verdict = "SAC+HER learned faster than PILoT here: at this budget the transfer did not pay off."
     else:
-        verdict = "No difference at this budget (often: neither learned yet). Try --steps 10000 or the cpu budget."
+        verdict = (
+            "No difference at this budget: neither learned yet. Without VecNormalize (which the zoo's transfer hook "
+            "refuses) even the source UDPO barely learns FetchReach in 8k steps, see zoo_runs/high-dim-action/README.md."
+        )
     print(verdict)
     print(f"Plots: {', '.join(str(png) for png in pngs)}. Wall time {time.perf_counter() - start:.0f} s.")
 
