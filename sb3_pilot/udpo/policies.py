@@ -39,17 +39,19 @@ def squashed_gaussian_sample(mean: th.Tensor, log_std: th.Tensor, deterministic:
     """
     Reparameterised sample of ``tanh(u)``, ``u ~ N(mean, exp(log_std))``, and its log-probability.
 
-    The tanh correction uses ``log(1 - tanh(u)^2) = 2 * (log 2 - u - softplus(-2u))``, which is exact and stable.
-
     :param mean: mean of the pre-squash Gaussian
     :param log_std: log standard deviation of the pre-squash Gaussian
     :param deterministic: return ``tanh(mean)`` instead of a sample
     :return: the squashed sample and its log-probability (shape ``(batch,)``)
     """
     gaussian = mean if deterministic else mean + th.randn_like(mean) * th.exp(log_std)
-    log_prob = gaussian_log_prob(gaussian, mean, log_std)
-    log_prob = log_prob - (2 * (math.log(2) - gaussian - F.softplus(-2 * gaussian))).sum(dim=-1)
-    return th.tanh(gaussian), log_prob
+    return th.tanh(gaussian), squashed_gaussian_log_prob(gaussian, mean, log_std)
+
+
+def squashed_gaussian_log_prob(gaussian: th.Tensor, mean: th.Tensor, log_std: th.Tensor) -> th.Tensor:
+    """Log-probability of ``tanh(gaussian)`` for ``gaussian ~ N(mean, exp(log_std))``, summed over the last dimension."""
+    tanh_log_det = 2 * (math.log(2) - gaussian - F.softplus(-2 * gaussian))  # log(1 - tanh(u)^2), stable
+    return gaussian_log_prob(gaussian, mean, log_std) - tanh_log_det.sum(dim=-1)
 
 
 def check_observation_space(observation_space: spaces.Space) -> None:
@@ -149,12 +151,21 @@ class StatePlanner(BaseModel):
         delta_mean, log_std = self.net(self.extract_features(obs, self.features_extractor)).chunk(2, dim=-1)
         return self.planner_state(obs), delta_mean, th.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX)
 
+    def plan(self, obs: PyTorchObs, deterministic: bool = False) -> tuple[th.Tensor, th.Tensor, th.Tensor, th.Tensor]:
+        """
+        :param obs: preprocessed observation batch
+        :param deterministic: return the mean plan instead of a reparameterised sample
+        :return: planner state ``s``, mean and log-std of ``s' - s``, and the planned next state ``s'``
+        """
+        state, delta_mean, log_std = self.distribution_params(obs)
+        planned = state + delta_mean
+        if not deterministic:
+            planned = planned + th.randn_like(delta_mean) * th.exp(log_std)
+        return state, delta_mean, log_std, planned
+
     def forward(self, obs: PyTorchObs, deterministic: bool = False) -> th.Tensor:
         """Planned next state ``s'`` (mean if ``deterministic``, else a reparameterised sample)."""
-        state, delta_mean, log_std = self.distribution_params(obs)
-        if deterministic:
-            return state + delta_mean
-        return state + delta_mean + th.randn_like(delta_mean) * th.exp(log_std)
+        return self.plan(obs, deterministic)[3]
 
     def _get_constructor_parameters(self) -> dict[str, Any]:
         data = super()._get_constructor_parameters()
@@ -199,9 +210,7 @@ class InverseDynamics(nn.Module):
         """Log-likelihood of buffer actions in ``[-1, 1]`` (the supervised loss is its negative)."""
         mean, log_std = self.distribution_params(state, next_state)
         eps = th.finfo(actions.dtype).eps
-        gaussian = th.atanh(actions.clamp(-1.0 + eps, 1.0 - eps))
-        log_prob = gaussian_log_prob(gaussian, mean, log_std)
-        return log_prob - (2 * (math.log(2) - gaussian - F.softplus(-2 * gaussian))).sum(dim=-1)
+        return squashed_gaussian_log_prob(th.atanh(actions.clamp(-1.0 + eps, 1.0 - eps)), mean, log_std)
 
 
 class UDPOPolicy(BasePolicy):
@@ -364,10 +373,7 @@ class UDPOPolicy(BasePolicy):
         :return: the planner's distribution, the planned state, the squashed action in ``[-1, 1]`` and
             ``log I(a | s, s')`` (shape ``(batch,)``)
         """
-        state, delta_mean, log_std = self.state_planner.distribution_params(obs)
-        planned = state + delta_mean
-        if not deterministic:
-            planned = planned + th.randn_like(delta_mean) * th.exp(log_std)
+        state, delta_mean, log_std, planned = self.state_planner.plan(obs, deterministic)
         actions, log_prob = self.inverse_dynamics(state, planned, deterministic=deterministic)
         return Plan(state, delta_mean, log_std, planned, actions, log_prob)
 
