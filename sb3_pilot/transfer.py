@@ -37,7 +37,7 @@ def observation_space_mismatch(source: spaces.Space, target: spaces.Space) -> st
     return None if source.shape == target.shape else f"shape {source.shape} vs {target.shape}"
 
 
-def _load_vec_normalize(source_vec_normalize: VecNormalize | str | os.PathLike) -> VecNormalize:
+def load_vec_normalize(source_vec_normalize: VecNormalize | str | os.PathLike) -> VecNormalize:
     """The source's ``VecNormalize`` (statistics only: a path is unpickled without attaching a venv)."""
     if isinstance(source_vec_normalize, VecNormalize):
         return source_vec_normalize
@@ -64,9 +64,45 @@ def _normalize_like(venv: VecEnv, source: VecNormalize, training: bool) -> VecNo
         epsilon=source.epsilon,
         norm_obs_keys=source.norm_obs_keys,
     )
+    copy_normalization_statistics(source, target, training=training)
+    return target
+
+
+def _rms_shapes(obs_rms: Any) -> Any:
+    """Shapes of a ``VecNormalize.obs_rms`` (one running statistic, or one per key of a Dict observation)."""
+    if isinstance(obs_rms, dict):
+        return {key: tuple(stats.mean.shape) for key, stats in obs_rms.items()}
+    return tuple(obs_rms.mean.shape)
+
+
+def copy_normalization_statistics(source: VecNormalize, target: VecNormalize, training: bool) -> None:
+    """
+    Copy the running statistics of ``source`` (``obs_rms``, ``ret_rms``: deep copies) into ``target``, whose venv
+    and spaces stay its own, so that a transferred state planner sees states scaled as on the source.
+
+    :param source: the source's ``VecNormalize`` (e.g. unpickled without a venv)
+    :param target: the target's ``VecNormalize``
+    :param training: whether ``target`` keeps updating the statistics (False: frozen at the source's)
+    :raises ValueError: if the two normalise observations differently (``norm_obs``, ``norm_obs_keys``,
+        ``clip_obs``, ``epsilon``) or their statistics have other shapes
+    """
+    for setting in ("norm_obs", "norm_obs_keys", "clip_obs", "epsilon"):
+        source_value, target_value = getattr(source, setting), getattr(target, setting)
+        if setting == "norm_obs_keys" and source_value is not None and target_value is not None:
+            source_value, target_value = sorted(source_value), sorted(target_value)
+        if source_value != target_value:
+            raise ValueError(
+                f"The source's and the target's VecNormalize differ in {setting} ({source_value!r} vs "
+                f"{target_value!r}): the planner would see observations scaled otherwise."
+            )
+    if source.norm_obs and _rms_shapes(source.obs_rms) != _rms_shapes(target.obs_rms):
+        raise ValueError(
+            "The source's observation statistics do not fit the target's observations: "
+            f"{_rms_shapes(source.obs_rms)} vs {_rms_shapes(target.obs_rms)}."
+        )
     target.obs_rms = copy.deepcopy(source.obs_rms)
     target.ret_rms = copy.deepcopy(source.ret_rms)
-    return target
+    target.training = training
 
 
 def load_planner_from(
@@ -106,7 +142,7 @@ def load_planner_from(
         # Only the policy is needed: no replay buffer (a HER buffer could not be built without the source's env)
         no_buffer = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}
         source_model = algorithm_class.load(source, device="cpu", custom_objects=no_buffer)
-        source_norm = None if source_vec_normalize is None else _load_vec_normalize(source_vec_normalize)
+        source_norm = None if source_vec_normalize is None else load_vec_normalize(source_vec_normalize)
 
     venv = BaseAlgorithm._wrap_env(maybe_make_env(env, verbose=0))
     if is_vecenv_wrapped(venv, VecNormalize):

@@ -29,7 +29,7 @@ from stable_baselines3.common.save_util import load_from_zip_file
 
 from sb3_pilot.envs import register_envs
 from sb3_pilot.planner import GoalPlanner
-from sb3_pilot.transfer import observation_space_mismatch
+from sb3_pilot.transfer import copy_normalization_statistics, load_vec_normalize, observation_space_mismatch
 from sb3_pilot.udpo import UDPO
 from sb3_pilot.wrappers import PilotBonusWrapper
 
@@ -103,30 +103,48 @@ class StatePlannerTransfer(BaseCallback):
           - sb3_pilot.zoo.StatePlannerTransfer:
               source: logs/udpo/Pilot-FetchReach-v0_1/Pilot-FetchReach-v0.zip
 
-    The planner's input is the raw observation: the source and the target must both be trained without
-    ``normalize`` (the hook refuses otherwise). Continuing a run with ``-i`` copies the source planner again.
+    The planner must see states scaled as it was trained: if the source was trained with ``normalize`` (the zoo
+    saves its statistics as ``<log folder>/udpo/<env>_<id>/<env>/vecnormalize.pkl``, next to the zip), the target
+    must be too, and its ``VecNormalize`` gets the source's statistics (``obs_rms`` and ``ret_rms``, deep copies;
+    its spaces stay the target's), frozen (``training=False``) when the planner is; the zoo's evaluation env copies
+    them from there. A source without ``normalize`` needs a target without it. Continuing a run with ``-i`` copies
+    the source planner (and statistics) again.
 
     :param source: the source model's zip (the zoo saves it as ``<log folder>/udpo/<env>_<id>/<env>.zip``)
-    :param freeze: keep the planner fixed on the target
+    :param freeze: keep the planner, and the observation statistics it reads, fixed on the target
+    :param source_vec_normalize: the source's ``vecnormalize.pkl``, if not where the zoo saves it next to ``source``
     :param verbose: 1 prints what was copied
     """
 
-    def __init__(self, source: str, freeze: bool = True, verbose: int = 0):
+    def __init__(self, source: str, freeze: bool = True, source_vec_normalize: str | None = None, verbose: int = 0):
         super().__init__(verbose)
         self.source = source
         self.freeze = freeze
+        self.source_vec_normalize = source_vec_normalize
+
+    def _source_stats(self) -> Path | None:
+        """The source's saved ``VecNormalize`` (None: it was trained without ``normalize``)."""
+        if self.source_vec_normalize is not None:
+            if not Path(self.source_vec_normalize).is_file():
+                raise FileNotFoundError(f"source_vec_normalize {self.source_vec_normalize} is no file.")
+            return Path(self.source_vec_normalize)
+        source_path = Path(self.source)
+        stats = source_path.parent / source_path.stem / "vecnormalize.pkl"  # where the zoo saves them
+        return stats if stats.is_file() else None
 
     def _on_training_start(self) -> None:
         if not isinstance(self.model, UDPO):
             raise ValueError(f"StatePlannerTransfer needs a UDPO model (it holds a state planner), got {type(self.model)}.")
-        source_path = Path(self.source)
-        source_stats = source_path.parent / source_path.stem / "vecnormalize.pkl"  # where the zoo saves them
-        if self.model.get_vec_normalize_env() is not None or source_stats.exists():
+        source_stats, target_norm = self._source_stats(), self.model.get_vec_normalize_env()
+        if (source_stats is None) != (target_norm is None):
+            used, unused = ("source", "target") if source_stats is not None else ("target", "source")
             raise ValueError(
-                "StatePlannerTransfer copies no VecNormalize statistics: train the source and the target without "
-                "`normalize`, or build the target with sb3_pilot.transfer.load_planner_from."
+                f"StatePlannerTransfer: the {used} uses VecNormalize (`normalize`) and the {unused} does not, so the "
+                "transferred planner would see states scaled otherwise than it was trained on: train both with "
+                "`normalize` (the source's statistics are then carried over) or both without."
             )
         # The policy's weights only: loading the whole source model would need its env (HER's buffer)
+        source_path = Path(self.source)
         data, params, _ = load_from_zip_file(source_path, device=self.model.device)
         mismatch = observation_space_mismatch(data["observation_space"], self.model.observation_space)
         if mismatch is not None:
@@ -141,12 +159,15 @@ class StatePlannerTransfer(BaseCallback):
                 f"The source's state planner ({self.source}) has another architecture than the target's: keep the "
                 f"source's policy_kwargs (source {source_shapes}, target {target_shapes})."
             )
+        if source_stats is not None and target_norm is not None:
+            copy_normalization_statistics(load_vec_normalize(source_stats), target_norm, training=not self.freeze)
         target_planner.load_state_dict(source_state)
         if self.freeze:
             self.model.freeze_planner = True
             target_planner.requires_grad_(False)
         if self.verbose > 0:
-            print(f"State planner copied from {self.source} ({'frozen' if self.freeze else 'trainable'})")
+            stats = f", VecNormalize statistics from {source_stats}" if source_stats is not None else ""
+            print(f"State planner copied from {self.source} ({'frozen' if self.freeze else 'trainable'}){stats}")
 
     def _on_step(self) -> bool:
         return True

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from sb3_pilot.challenges import CHALLENGES, run_challenge, steps_to
@@ -13,6 +14,7 @@ from sb3_pilot.challenges.__main__ import main as challenges_main
 from sb3_pilot.challenges.stages import STAGE_MARKER
 from sb3_pilot.demo import main as demo_main
 from sb3_pilot.plots import main as plots_main
+from sb3_pilot.transfer import load_vec_normalize
 
 
 def check_summary(summary: dict[str, Any], name: str, run_dir: Path) -> None:
@@ -63,6 +65,17 @@ def test_high_dim_action_smoke_resume_and_plots(tmp_path: Path, capsys: pytest.C
     check_summary(summary, "high-dim-action", run_dir)
     pilot = summary["stages"]["seed_0/pilot"]["config"]["zoo"]
     assert "sb3_pilot.zoo.StatePlannerTransfer" in pilot[-1] and "--conf-file" in pilot
+    for stage in ("source", "pilot", "her"):  # RL-Zoo's VecNormalize on every stage, the baseline's included
+        assert "normalize:True" in summary["stages"][f"seed_0/{stage}"]["config"]["zoo"], stage
+    # the target's saved statistics are the source's, frozen with the transferred planner
+    saved = {
+        stage: load_vec_normalize(next((run_dir / "models" / "seed_0" / stage).rglob("vecnormalize.pkl")))
+        for stage in ("source", "pilot")
+    }
+    assert not saved["pilot"].training
+    for key, stats in saved["source"].obs_rms.items():
+        np.testing.assert_array_equal(saved["pilot"].obs_rms[key].mean, stats.mean, err_msg=key)
+        np.testing.assert_array_equal(saved["pilot"].obs_rms[key].var, stats.var, err_msg=key)
     marker = run_dir / "models" / "seed_0" / "source" / STAGE_MARKER
     marker_time = marker.stat().st_mtime
     capsys.readouterr()

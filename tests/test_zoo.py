@@ -15,7 +15,7 @@ import pytest
 import yaml
 from rl_zoo3.exp_manager import ExperimentManager
 from stable_baselines3 import HerReplayBuffer
-from stable_baselines3.common.vec_env import DummyVecEnv
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_pilot import UDPO
 from sb3_pilot.envs import PILOT_ENV_IDS
@@ -188,6 +188,65 @@ def test_state_planner_transfer_hook(tmp_path: Path) -> None:
     manager = experiment(tmp_path, "udpo.yml", "Pilot/FetchPushHighDim-v0", {"buffer_size": 1000, "callback": wrong})
     model, _ = manager.setup_experiment()
     with pytest.raises(ValueError, match="cannot read the target's observations"):
+        model.learn(10, callback=manager.callbacks)
+    normalized = experiment(
+        tmp_path, "udpo.yml", "Pilot/FetchReachHighDim-v0", {"buffer_size": 1000, "callback": callback, "normalize": True}
+    )
+    model, _ = normalized.setup_experiment()
+    with pytest.raises(ValueError, match="the target uses VecNormalize"):
+        model.learn(10, callback=normalized.callbacks)
+
+
+def transfer_callback(source: Path, **kwargs: Any) -> list[dict[str, Any]]:
+    return [{"sb3_pilot.zoo.StatePlannerTransfer": {"source": str(source), **kwargs}}]
+
+
+def test_state_planner_transfer_carries_vec_normalize(tmp_path: Path) -> None:
+    """A source trained with ``normalize``: its observation statistics reach the target, frozen with the planner."""
+    register()
+    source_env = VecNormalize(DummyVecEnv([lambda: gym.make("Pilot/FetchReach-v0")]), gamma=0.99)
+    source = UDPO("MultiInputPolicy", source_env, buffer_size=200, replay_buffer_class=HerReplayBuffer, learning_starts=1000)
+    source.learn(60)  # fewer steps than learning_starts: statistics, no update
+    source.save(tmp_path / "source.zip")
+    (tmp_path / "source").mkdir()
+    source_env.save(str(tmp_path / "source" / "vecnormalize.pkl"))  # where the zoo saves them
+    custom = {"buffer_size": 1000, "normalize": True, "callback": transfer_callback(tmp_path / "source.zip")}
+    manager = experiment(tmp_path, "udpo.yml", "Pilot/FetchReachHighDim-v0", custom)
+    model, _ = manager.setup_experiment()
+    model.learn(20, callback=manager.callbacks)
+    target_norm = model.get_vec_normalize_env()
+    assert isinstance(target_norm, VecNormalize) and not target_norm.training
+    assert target_norm.action_space.shape == model.action_space.shape != source.action_space.shape
+    assert source_env.obs_rms["observation"].count > 60
+    for key, stats in source_env.obs_rms.items():  # unchanged by the target's 20 steps
+        assert target_norm.obs_rms[key] is not stats
+        np.testing.assert_array_equal(target_norm.obs_rms[key].mean, stats.mean, err_msg=key)
+        np.testing.assert_array_equal(target_norm.obs_rms[key].var, stats.var, err_msg=key)
+    np.testing.assert_array_equal(target_norm.ret_rms.var, source_env.ret_rms.var)
+    assert model.freeze_planner
+
+    # freeze=False: the statistics start from the source's and keep learning
+    custom["callback"] = transfer_callback(tmp_path / "source.zip", freeze=False)
+    manager = experiment(tmp_path, "udpo.yml", "Pilot/FetchReachHighDim-v0", custom)
+    model, _ = manager.setup_experiment()
+    model.learn(20, callback=manager.callbacks)
+    target_norm = model.get_vec_normalize_env()
+    assert target_norm.training and target_norm.obs_rms["observation"].count > source_env.obs_rms["observation"].count
+
+    # refusals: a normalised source for a target without normalize; statistics of other observations
+    custom = {"buffer_size": 1000, "callback": transfer_callback(tmp_path / "source.zip")}
+    manager = experiment(tmp_path, "udpo.yml", "Pilot/FetchReachHighDim-v0", custom)
+    model, _ = manager.setup_experiment()
+    with pytest.raises(ValueError, match="the source uses VecNormalize"):
+        model.learn(10, callback=manager.callbacks)
+    push_stats = tmp_path / "push_vecnormalize.pkl"
+    VecNormalize(DummyVecEnv([lambda: gym.make("Pilot/FetchPush-v0")])).save(str(push_stats))
+    callback = transfer_callback(tmp_path / "source.zip", source_vec_normalize=str(push_stats))
+    manager = experiment(
+        tmp_path, "udpo.yml", "Pilot/FetchReachHighDim-v0", {"buffer_size": 1000, "normalize": True, "callback": callback}
+    )
+    model, _ = manager.setup_experiment()
+    with pytest.raises(ValueError, match="statistics do not fit"):
         model.learn(10, callback=manager.callbacks)
 
 
