@@ -55,9 +55,15 @@ RL_ZOO_FETCH: dict[str, dict[str, Any]] = {
 }
 #: :data:`RL_ZOO_FETCH` with RL-Zoo's ``normalize: true`` (VecNormalize of observations and rewards), for every
 #: stage of the High-Dim-Action challenge (source, transfer target and SAC + HER baseline alike): the zoo's
-#: state-planner transfer hook carries the source's statistics into the target, frozen with the planner. Not for
-#: Vec-to-Image, whose target observes images and whose distilled goal planner reads raw goals.
+#: state-planner transfer hook carries the source's statistics into the target, frozen with the planner.
 RL_ZOO_FETCH_NORMALIZED: dict[str, dict[str, Any]] = {**RL_ZOO_FETCH, "*": {**RL_ZOO_FETCH["*"], "normalize": True}}
+#: :data:`RL_ZOO_FETCH` with ``normalize: true`` for the UDPO source only, for Vec-to-Image: the source learns
+#: FetchReach as in High-Dim-Action, and distillation maps the teacher's normalised plans back to raw goals, which is
+#: what the bonus reads. The image agents (PILoT and baseline) keep RL-Zoo's FetchReach settings without it.
+RL_ZOO_FETCH_SOURCE_NORMALIZED: dict[str, dict[str, Any]] = {
+    **RL_ZOO_FETCH,
+    "udpo": {**RL_ZOO_FETCH["udpo"], "normalize": True},
+}
 
 
 @dataclass(frozen=True)
@@ -146,7 +152,7 @@ CHALLENGES: dict[str, Challenge] = {
                 "smoke": {"source": 300, "pilot": 200, "her": 200},
                 "cpu": {"source": 8000, "pilot": 20_000, "her": 20_000},
             },
-            fast_hyperparams=RL_ZOO_FETCH,
+            fast_hyperparams=RL_ZOO_FETCH_SOURCE_NORMALIZED,
         ),
         Challenge(
             "complex-morph",
