@@ -110,6 +110,9 @@ def test_zero_shot_ant_maze_smoke(tmp_path: Path) -> None:
     assert len(episode["achieved_goals"]) == len(episode["landmarks"]) == 501  # reset + 500 steps
     holdout = json.loads((run_dir / "models" / "seed_0" / "distill" / "distill.json").read_text())
     assert holdout["nll"] < holdout["nll_untrained"]
+    # the maze source trains on uniform starts and goals (the zoo's --env-kwargs), as its args.yml records
+    args = (run_dir / "models/seed_0/maze/udpo/Pilot-Maze2D-v0_1/Pilot-Maze2D-v0/args.yml").read_text()
+    assert "goal_distribution: uniform" in args
     check_pngs(run_dir, {"success.png", "plan_error.png", "landmarks.png"})
 
 

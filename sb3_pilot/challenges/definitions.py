@@ -183,7 +183,17 @@ CHALLENGES: dict[str, Challenge] = {
             "(0 Ant-Maze steps), vs SAC+HER trained on Ant-Maze",
             "Pilot/AntMaze-v0",
             (
-                ZooTrain("maze", "udpo", "Pilot/Maze2D-v0", "udpo.yml", save_replay_buffer=True),
+                # starts and goals uniform over the maze, so the planner knows its geometry everywhere (the paper
+                # queries it from arbitrary start goals); trained on the far goal alone, UDPO saw no success in
+                # 12k of its 20k cpu steps and gives a planner with nothing to distil
+                ZooTrain(
+                    "maze",
+                    "udpo",
+                    "Pilot/Maze2D-v0",
+                    "udpo.yml",
+                    save_replay_buffer=True,
+                    env_kwargs={"goal_distribution": "uniform"},
+                ),
                 Distill("distill", "maze"),
                 ZooTrain("controller", "sac", "Pilot/AntLocomotion-v0", "sac.yml"),
                 Guidance("pilot", "distill", "controller", "Pilot/AntMaze-v0", "PILoT zero-shot (0 Ant-Maze steps)"),

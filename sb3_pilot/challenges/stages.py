@@ -156,6 +156,7 @@ class ZooTrain:
     :param needs: stages whose outputs ``params`` reads
     :param method: label in the summary if this stage is a compared method on the target task
     :param save_replay_buffer: keep the replay buffer (a later :class:`Distill` reads it)
+    :param env_kwargs: keyword arguments of the task (the zoo's ``--env-kwargs``), for training and evaluation
     """
 
     name: str
@@ -166,6 +167,7 @@ class ZooTrain:
     needs: tuple[str, ...] = ()
     method: str | None = None
     save_replay_buffer: bool = False
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
 
     def output(self, stage_dir: Path) -> Path:
         """The trained model's zip."""
@@ -195,6 +197,8 @@ class ZooTrain:
         args += ["--seed", str(ctx.seed), "-n", str(steps), "--num-threads", "1"]
         args += ["--eval-freq", str(max(steps // ctx.budget.n_evals, 1)), "--eval-episodes", str(ctx.budget.eval_episodes)]
         args += ["-params", *(f"{key}:{value!r}" for key, value in hyperparams.items())]
+        if self.env_kwargs:
+            args += ["--env-kwargs", *(f"{key}:{value!r}" for key, value in self.env_kwargs.items())]
         return [*args, "--save-replay-buffer"] if self.save_replay_buffer else args
 
     def config(self, ctx: StageContext, stage_dir: Path) -> dict[str, Any]:
