@@ -154,7 +154,7 @@ def draw_umaze(
     limit = len(UMAZE_MAP) * half
     ax.set(xlim=(-limit, limit), ylim=(-limit, limit), aspect="equal", title=title)
     ax.title.set_fontsize(9)
-    ax.legend(fontsize=7, loc="center left")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.07), ncol=2)
 
 
 def maze2d_rollout(planner: GoalPlanner, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -216,7 +216,7 @@ def plot_landmarks(summary: dict[str, Any], run_dir: Path, path: Path) -> bool:
 
 def _save(fig: plt.Figure, path: Path) -> None:
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     print(f"Saved {path}")
 
