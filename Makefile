@@ -10,7 +10,7 @@ $(VENV)/.installed: setup.cfg pyproject.toml scripts/setup_env.sh
 	VENV=$(VENV) bash scripts/setup_env.sh
 
 demo: $(VENV)/.installed
-	$(PY) -m sb3_pilot.demo
+	$(PY) -m sb3_pilot.experiments.demo
 
 test: $(VENV)/.installed
 	$(VENV)/bin/ruff check sb3_pilot tests

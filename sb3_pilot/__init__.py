@@ -1,12 +1,23 @@
-"""sb3-pilot: PILoT (Planning Immediate Landmarks of Targets) for Stable-Baselines3."""
+"""
+sb3-pilot: PILoT (Planning Immediate Landmarks of Targets) for Stable-Baselines3.
 
-from sb3_pilot.distill import distill_goal_planner
+The library follows the paper's three stages: :mod:`sb3_pilot.udpo` (pre-training), :mod:`sb3_pilot.distill`
+(distillation) and :mod:`sb3_pilot.transfer` (transfer), on :mod:`sb3_pilot.common`; :mod:`sb3_pilot.envs` holds the
+paper's tasks. :mod:`sb3_pilot.experiments` (the RL-Zoo entry, challenges, benchmarks, plots, demo) builds on the
+library and is never imported by it.
+"""
+
+from sb3_pilot.distill import GoalPlanner, distill_goal_planner, share_goal_space
 from sb3_pilot.envs import register_envs
-from sb3_pilot.planner import GoalPlanner, share_goal_space
-from sb3_pilot.transfer import load_planner_from
+from sb3_pilot.transfer import (
+    LandmarkGuidance,
+    PilotBonusWrapper,
+    PilotHerReplayBuffer,
+    StatePlannerTransferCallback,
+    load_planner_from,
+)
 from sb3_pilot.udpo import UDPO
 from sb3_pilot.version import __version__
-from sb3_pilot.wrappers import LandmarkGuidance, PilotBonusWrapper, PilotHerReplayBuffer
 
 register_envs()  # the Pilot/...-v0 tasks (also what `rl_zoo3 --gym-packages sb3_pilot` relies on)
 
@@ -16,6 +27,7 @@ __all__ = [
     "LandmarkGuidance",
     "PilotBonusWrapper",
     "PilotHerReplayBuffer",
+    "StatePlannerTransferCallback",
     "__version__",
     "distill_goal_planner",
     "load_planner_from",

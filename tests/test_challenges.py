@@ -9,12 +9,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-from sb3_pilot.challenges import CHALLENGES, run_challenge, steps_to
-from sb3_pilot.challenges.__main__ import main as challenges_main
-from sb3_pilot.challenges.stages import STAGE_MARKER
-from sb3_pilot.demo import main as demo_main
-from sb3_pilot.plots import main as plots_main
-from sb3_pilot.transfer import load_vec_normalize
+from sb3_pilot.experiments.challenges import CHALLENGES, run_challenge, steps_to
+from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
+from sb3_pilot.experiments.challenges.stages import STAGE_MARKER
+from sb3_pilot.experiments.demo import main as demo_main
+from sb3_pilot.experiments.plots import main as plots_main
+from sb3_pilot.transfer.state_planner import load_vec_normalize
 
 
 def check_summary(summary: dict[str, Any], name: str, run_dir: Path) -> None:
@@ -64,7 +64,7 @@ def test_high_dim_action_smoke_resume_and_plots(tmp_path: Path, capsys: pytest.C
     summary = json.loads((run_dir / "summary.json").read_text())
     check_summary(summary, "high-dim-action", run_dir)
     pilot = summary["stages"]["seed_0/pilot"]["config"]["zoo"]
-    assert "sb3_pilot.zoo.StatePlannerTransfer" in pilot[-1] and "--conf-file" in pilot
+    assert "sb3_pilot.transfer.StatePlannerTransferCallback" in pilot[-1] and "--conf-file" in pilot
     for stage in ("source", "pilot", "her"):  # RL-Zoo's VecNormalize on every stage, the baseline's included
         assert "normalize:True" in summary["stages"][f"seed_0/{stage}"]["config"]["zoo"], stage
     # the target's saved statistics are the source's, frozen with the transferred planner
@@ -124,7 +124,7 @@ def test_bonus_challenges_smoke(tmp_path: Path, name: str) -> None:
     run_dir = tmp_path / name
     check_summary(summary, name, run_dir)
     pilot = summary["stages"]["seed_0/pilot"]["config"]["zoo"]
-    assert "sb3_pilot.zoo.pilot_bonus_wrapper" in " ".join(pilot) and "sac_pilot.yml" in " ".join(pilot)
+    assert "sb3_pilot.PilotBonusWrapper" in " ".join(pilot) and "sac_pilot.yml" in " ".join(pilot)
     check_pngs(run_dir, {"success.png", "plan_error.png"})
 
 

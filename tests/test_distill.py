@@ -10,8 +10,8 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_pilot import UDPO
-from sb3_pilot.distill import distill_goal_planner, teacher_goal_distribution
-from sb3_pilot.planner import GoalPlanner
+from sb3_pilot.distill import GoalPlanner, distill_goal_planner
+from sb3_pilot.distill.distill import teacher_goal_distribution
 
 DISTILL_KWARGS = {"n_samples": 10_000, "gradient_steps": 1000, "net_arch": [64, 64]}
 

@@ -43,12 +43,12 @@ def assert_same(first: dict[str, th.Tensor], second: dict[str, th.Tensor]) -> No
 
 
 def test_transfer_copies_planner_and_frozen_planner_stays_unchanged(source):
-    target = load_planner_from(UDPO, source, Monitor(DoubledActions(PointGoalEnv())), **TARGET_KWARGS)
+    target = load_planner_from(source, Monitor(DoubledActions(PointGoalEnv())), **TARGET_KWARGS)
     copied = planner_params(target)
     assert_same(copied, planner_params(source))
     assert target.action_space.shape == (4,)
     assert target.policy.inverse_dynamics.action_dim == 4
-    assert target.freeze_planner
+    assert target.policy.freeze_state_planner
     assert not any(param.requires_grad for param in target.policy.state_planner.parameters())
     inverse_dynamics = {name: value.clone() for name, value in target.policy.inverse_dynamics.state_dict().items()}
     target.learn(500)
@@ -59,10 +59,10 @@ def test_transfer_copies_planner_and_frozen_planner_stays_unchanged(source):
 
 def test_unfrozen_planner_trains_and_path_source(source, tmp_path):
     source.save(tmp_path / "source")
-    target = load_planner_from(UDPO, tmp_path / "source", DoubledActions(PointGoalEnv()), freeze=False, **TARGET_KWARGS)
+    target = load_planner_from(tmp_path / "source", DoubledActions(PointGoalEnv()), freeze=False, **TARGET_KWARGS)
     assert_same(planner_params(target), planner_params(source))
     target.learn(400)
-    assert not target.freeze_planner
+    assert not target.policy.freeze_state_planner
     changed = planner_params(target)
     assert not all(th.equal(value, changed[name]) for name, value in planner_params(source).items())
 
@@ -74,7 +74,7 @@ def test_vec_normalize_statistics_are_carried_over(tmp_path):
     for source_arg, extra in [(source, {}), (tmp_path / "source", {"source_vec_normalize": tmp_path / "stats.pkl"})]:
         source.save(tmp_path / "source")
         venv.save(tmp_path / "stats.pkl")
-        target = load_planner_from(UDPO, source_arg, DoubledActions(PointGoalEnv()), **extra, **TARGET_KWARGS)
+        target = load_planner_from(source_arg, DoubledActions(PointGoalEnv()), **extra, **TARGET_KWARGS)
         target_norm = target.get_vec_normalize_env()
         assert isinstance(target_norm, VecNormalize)
         assert not target_norm.training and target_norm.clip_obs == 5.0 and not target_norm.norm_reward
@@ -92,14 +92,14 @@ def test_vec_normalize_statistics_are_carried_over(tmp_path):
 
 def test_transfer_refusals(source, tmp_path):
     with pytest.raises(ValueError, match="'observation' has shape"):
-        load_planner_from(UDPO, source, WallMazeEnv(), **TARGET_KWARGS)
+        load_planner_from(source, WallMazeEnv(), **TARGET_KWARGS)
     with pytest.raises(ValueError, match="without VecNormalize"):
-        load_planner_from(UDPO, source, VecNormalize(DummyVecEnv([PointGoalEnv])), **TARGET_KWARGS)
+        load_planner_from(source, VecNormalize(DummyVecEnv([PointGoalEnv])), **TARGET_KWARGS)
     with pytest.raises(ValueError, match="architecture"):
-        load_planner_from(UDPO, source, PointGoalEnv(), policy_kwargs={"net_arch": [32]}, **TARGET_KWARGS)
+        load_planner_from(source, PointGoalEnv(), policy_kwargs={"net_arch": [32]}, **TARGET_KWARGS)
     with pytest.raises(ValueError, match="path"):
-        load_planner_from(UDPO, source, PointGoalEnv(), source_vec_normalize=tmp_path / "stats.pkl", **TARGET_KWARGS)
+        load_planner_from(source, PointGoalEnv(), source_vec_normalize=tmp_path / "stats.pkl", **TARGET_KWARGS)
     (tmp_path / "not_stats.pkl").write_bytes(b"\x80\x04K\x01.")  # pickle of the int 1
     source.save(tmp_path / "source")
     with pytest.raises(ValueError, match="VecNormalize"):
-        load_planner_from(UDPO, tmp_path / "source", PointGoalEnv(), source_vec_normalize=tmp_path / "not_stats.pkl")
+        load_planner_from(tmp_path / "source", PointGoalEnv(), source_vec_normalize=tmp_path / "not_stats.pkl")

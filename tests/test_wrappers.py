@@ -8,10 +8,10 @@ from maze_envs import WallMazeEnv, train_udpo
 from stable_baselines3 import HerReplayBuffer
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from sb3_pilot import planner as planner_module
-from sb3_pilot.distill import distill_goal_planner
-from sb3_pilot.planner import GoalPlanner
-from sb3_pilot.wrappers import PREVIOUS_ACHIEVED_GOAL, LandmarkGuidance, PilotBonusWrapper, PilotHerReplayBuffer
+from sb3_pilot.distill import GoalPlanner, distill_goal_planner
+from sb3_pilot.distill import goal_planner as planner_module
+from sb3_pilot.transfer import LandmarkGuidance, PilotBonusWrapper, PilotHerReplayBuffer
+from sb3_pilot.transfer.bonus import PREVIOUS_ACHIEVED_GOAL
 
 
 def make_planner(source_task: str = "WallMazeEnv", goal_dim: int = 2, seed: int = 0) -> GoalPlanner:

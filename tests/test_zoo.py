@@ -1,4 +1,4 @@
-"""RL-Zoo integration: the YAML in hyperparams/ (against the paper's tables) and ``python -m sb3_pilot.zoo``."""
+"""RL-Zoo integration: the YAML in hyperparams/ (against the paper's tables) and ``python -m sb3_pilot.experiments.zoo``."""
 
 from __future__ import annotations
 
@@ -18,18 +18,17 @@ from stable_baselines3 import HerReplayBuffer
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_pilot import UDPO
+from sb3_pilot.distill import GoalPlanner
 from sb3_pilot.envs import PILOT_ENV_IDS
-from sb3_pilot.planner import GoalPlanner
-from sb3_pilot.wrappers import PilotBonusWrapper, PilotHerReplayBuffer
-from sb3_pilot.zoo import (
+from sb3_pilot.experiments.zoo import (
     INVERSE_DYNAMICS_INTERVAL_GRID,
     PLANNER_COEF_GRID,
-    StatePlannerTransfer,
     _with_conf_file,
     hyperparams_dir,
     register,
     sample_udpo_params,
 )
+from sb3_pilot.transfer import PilotBonusWrapper, PilotHerReplayBuffer, StatePlannerTransferCallback
 
 HYPERPARAMS = hyperparams_dir()
 PAPER_FILES = {"udpo.yml": "udpo", "sac.yml": "sac", "sac_pilot.yml": "sac"}
@@ -109,7 +108,7 @@ def test_paper_tables(name: str) -> None:
             assert params["inverse_dynamics_learning_rate"] == 1e-4, env_id
         if name == "sac_pilot.yml":
             ((wrapper, kwargs),) = params["env_wrapper"][0].items()
-            assert wrapper == "sb3_pilot.zoo.pilot_bonus_wrapper" and kwargs["beta"] == 1.0, env_id
+            assert wrapper == "sb3_pilot.PilotBonusWrapper" and kwargs["beta"] == 1.0, env_id
             assert "PilotHerReplayBuffer" in params["replay_buffer_class"], env_id
 
 
@@ -176,15 +175,16 @@ def test_state_planner_transfer_hook(tmp_path: Path) -> None:
     register()
     source = UDPO("MultiInputPolicy", "Pilot/FetchReach-v0", buffer_size=100, replay_buffer_class=HerReplayBuffer)
     source.save(tmp_path / "source.zip")
-    callback = [{"sb3_pilot.zoo.StatePlannerTransfer": {"source": str(tmp_path / "source.zip")}}]
+    callback = [{"sb3_pilot.transfer.StatePlannerTransferCallback": {"source": str(tmp_path / "source.zip")}}]
     manager = experiment(tmp_path, "udpo.yml", "Pilot/FetchReachHighDim-v0", {"buffer_size": 1000, "callback": callback})
     model, _ = manager.setup_experiment()
-    assert isinstance(manager.callbacks[0], StatePlannerTransfer)
+    assert isinstance(manager.callbacks[0], StatePlannerTransferCallback)
     model.learn(10, callback=manager.callbacks)  # fewer steps than learning_starts: no update
     for name, value in source.policy.state_planner.state_dict().items():
         np.testing.assert_array_equal(value.numpy(), model.policy.state_planner.state_dict()[name].numpy(), err_msg=name)
-    assert model.freeze_planner and not any(param.requires_grad for param in model.policy.state_planner.parameters())
-    wrong = [{"sb3_pilot.zoo.StatePlannerTransfer": {"source": str(tmp_path / "source.zip")}}]
+    assert model.policy.freeze_state_planner
+    assert not any(param.requires_grad for param in model.policy.state_planner.parameters())
+    wrong = [{"sb3_pilot.transfer.StatePlannerTransferCallback": {"source": str(tmp_path / "source.zip")}}]
     manager = experiment(tmp_path, "udpo.yml", "Pilot/FetchPushHighDim-v0", {"buffer_size": 1000, "callback": wrong})
     model, _ = manager.setup_experiment()
     with pytest.raises(ValueError, match="cannot read the target's observations"):
@@ -198,7 +198,7 @@ def test_state_planner_transfer_hook(tmp_path: Path) -> None:
 
 
 def transfer_callback(source: Path, **kwargs: Any) -> list[dict[str, Any]]:
-    return [{"sb3_pilot.zoo.StatePlannerTransfer": {"source": str(source), **kwargs}}]
+    return [{"sb3_pilot.transfer.StatePlannerTransferCallback": {"source": str(source), **kwargs}}]
 
 
 def test_state_planner_transfer_carries_vec_normalize(tmp_path: Path) -> None:
@@ -223,10 +223,10 @@ def test_state_planner_transfer_carries_vec_normalize(tmp_path: Path) -> None:
         np.testing.assert_array_equal(target_norm.obs_rms[key].mean, stats.mean, err_msg=key)
         np.testing.assert_array_equal(target_norm.obs_rms[key].var, stats.var, err_msg=key)
     np.testing.assert_array_equal(target_norm.ret_rms.var, source_env.ret_rms.var)
-    assert model.freeze_planner
+    assert model.policy.freeze_state_planner
 
-    # freeze=False: the statistics start from the source's and keep learning
-    custom["callback"] = transfer_callback(tmp_path / "source.zip", freeze=False)
+    # freeze_state_planner=False: the statistics start from the source's and keep learning
+    custom["policy_kwargs"] = {"freeze_state_planner": False}
     manager = experiment(tmp_path, "udpo.yml", "Pilot/FetchReachHighDim-v0", custom)
     model, _ = manager.setup_experiment()
     model.learn(20, callback=manager.callbacks)
@@ -279,8 +279,8 @@ def run(*args: str, cwd: Path) -> str:
 
 
 def test_train_enjoy_plot_cli(tmp_path: Path) -> None:
-    """``python -m sb3_pilot.zoo train`` leaves a loadable model that ``enjoy`` replays and ``plot_train`` draws."""
-    zoo = ("-m", "sb3_pilot.zoo")
+    """``sb3_pilot.experiments.zoo train`` leaves a loadable model that ``enjoy`` replays and ``plot_train`` draws."""
+    zoo = ("-m", "sb3_pilot.experiments.zoo")
     common = ("--algo", "udpo", "--env", "Pilot/Maze2D-v0", "-f", "logs", "--num-threads", "1")
     run(*zoo, "train", *common, "-n", "500", "--seed", "0", "--eval-freq", "-1", cwd=tmp_path)
     model_path = tmp_path / "logs" / "udpo" / "Pilot-Maze2D-v0_1" / "Pilot-Maze2D-v0.zip"

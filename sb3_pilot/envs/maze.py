@@ -13,6 +13,7 @@ and a goal planned in Maze2D is an AntMaze goal with no conversion.
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import gymnasium as gym
@@ -201,6 +202,8 @@ class AntMazeEnv(GoalReachingMixin, gym.Env):
             reset_target=False,
             include_cfrc_ext_in_observation=ANT_KWARGS["include_cfrc_ext_in_observation"],
         )
+        # gymnasium-robotics writes the maze's XML to the temp folder and leaves it there; MuJoCo has read it
+        os.remove(self.maze_env.tmp_xml_file_path)
         self.ant_env = self.maze_env.ant_env
         self.action_space = self.ant_env.action_space
         obs_space = spaces.Box(-np.inf, np.inf, shape=(ANT_OBS_DIM,), dtype=np.float32)

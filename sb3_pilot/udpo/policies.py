@@ -1,13 +1,12 @@
-"""Networks of UDPO: goal-conditioned state planner, inverse dynamics and twin Q critics."""
+"""Policies of UDPO: the goal-conditioned state planner ``h``, the inverse dynamics ``I`` and twin Q critics."""
 
-import math
 from typing import Any, NamedTuple
 
 import numpy as np
 import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.policies import BaseModel, BasePolicy, ContinuousCritic
-from stable_baselines3.common.preprocessing import get_action_dim, is_image_space
+from stable_baselines3.common.preprocessing import get_action_dim, get_flattened_obs_dim, is_image_space, preprocess_obs
 from stable_baselines3.common.torch_layers import (
     BaseFeaturesExtractor,
     CombinedExtractor,
@@ -17,100 +16,134 @@ from stable_baselines3.common.torch_layers import (
 )
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
-from torch.nn import functional as F
 
-# Same bounds as SB3's SAC actor
-LOG_STD_MAX = 2
-LOG_STD_MIN = -20
-_HALF_LOG_2PI = 0.5 * math.log(2 * math.pi)
+from sb3_pilot.common.distributions import (
+    LOG_STD_MAX,
+    LOG_STD_MIN,
+    gaussian_log_prob,
+    squashed_gaussian_log_prob,
+    squashed_gaussian_sample,
+)
 
-#: Keys of a Dict observation that form the planner state, in this order.
-PLANNER_STATE_KEYS = ("observation", "achieved_goal")
-#: Keys a Dict observation may hold.
-SUPPORTED_KEYS = frozenset((*PLANNER_STATE_KEYS, "desired_goal"))
-
-
-def gaussian_log_prob(value: th.Tensor, mean: th.Tensor, log_std: th.Tensor) -> th.Tensor:
-    """Log-density of a diagonal Gaussian, summed over the last dimension."""
-    return (-0.5 * ((value - mean) * th.exp(-log_std)) ** 2 - log_std - _HALF_LOG_2PI).sum(dim=-1)
+#: Planner states are observations without this key (the target goal ``g`` conditions ``h``, it is not planned).
+DESIRED_GOAL = "desired_goal"
+#: The key whose value is the goal mapping ``phi(s)``: placed last in the planner state.
+ACHIEVED_GOAL = "achieved_goal"
 
 
-def squashed_gaussian_sample(mean: th.Tensor, log_std: th.Tensor, deterministic: bool = False) -> tuple[th.Tensor, th.Tensor]:
+def planner_state_keys(observation_space: spaces.Space) -> tuple[str, ...]:
     """
-    Reparameterised sample of ``tanh(u)``, ``u ~ N(mean, exp(log_std))``, and its log-probability.
+    Keys of a Dict observation that form the planner state ``s``, in their order in ``s``: every key but
+    ``desired_goal``, sorted, with ``achieved_goal`` last (so ``phi(s)`` is the tail of ``s``). Empty for other spaces
+    (the whole observation is the state).
 
-    :param mean: mean of the pre-squash Gaussian
-    :param log_std: log standard deviation of the pre-squash Gaussian
-    :param deterministic: return ``tanh(mean)`` instead of a sample
-    :return: the squashed sample and its log-probability (shape ``(batch,)``)
+    :param observation_space: the observation space
     """
-    gaussian = mean if deterministic else mean + th.randn_like(mean) * th.exp(log_std)
-    return th.tanh(gaussian), squashed_gaussian_log_prob(gaussian, mean, log_std)
-
-
-def squashed_gaussian_log_prob(gaussian: th.Tensor, mean: th.Tensor, log_std: th.Tensor) -> th.Tensor:
-    """Log-probability of ``tanh(gaussian)`` for ``gaussian ~ N(mean, exp(log_std))``, summed over the last dimension."""
-    tanh_log_det = 2 * (math.log(2) - gaussian - F.softplus(-2 * gaussian))  # log(1 - tanh(u)^2), stable
-    return gaussian_log_prob(gaussian, mean, log_std) - tanh_log_det.sum(dim=-1)
+    if not isinstance(observation_space, spaces.Dict):
+        return ()
+    keys = sorted(key for key in observation_space.spaces if key not in (DESIRED_GOAL, ACHIEVED_GOAL))
+    return (*keys, ACHIEVED_GOAL) if ACHIEVED_GOAL in observation_space.spaces else tuple(keys)
 
 
 def check_observation_space(observation_space: spaces.Space) -> None:
     """
     Raise a ``ValueError`` naming the problem if UDPO cannot plan in ``observation_space``.
 
-    UDPO's planner predicts the next *vector* state, so it needs a flat ``Box`` or a ``Dict`` whose entries are flat
-    ``Box`` vectors among ``observation``, ``achieved_goal`` and ``desired_goal`` (with ``observation`` present).
+    The planner state is the flattened (one-hot for discrete spaces, as SB3 preprocesses them) observation, or for a
+    Dict every entry but ``desired_goal``. The planner predicts it as a Gaussian vector, so no entry of it may be an
+    image, and it may not be empty.
+
+    :param observation_space: the observation space
     """
     if isinstance(observation_space, spaces.Dict):
-        unknown = set(observation_space.spaces) - SUPPORTED_KEYS
-        if unknown:
+        keys = planner_state_keys(observation_space)
+        if not keys:
             raise ValueError(
-                f"UDPO supports Dict observations with keys {sorted(SUPPORTED_KEYS)} only, got unsupported keys "
-                f"{sorted(unknown)}."
+                f"UDPO's state planner plans every observation entry but '{DESIRED_GOAL}', and there is none: "
+                f"{observation_space}."
             )
-        if "observation" not in observation_space.spaces:
-            raise ValueError("UDPO needs an 'observation' entry in a Dict observation space: the planner plans its next value")
-        for key, subspace in observation_space.spaces.items():
-            _check_vector_space(subspace, f"observation entry '{key}'")
+        for key in keys:
+            _check_plannable(observation_space[key], f"observation entry '{key}'")
     else:
-        _check_vector_space(observation_space, "observation space")
+        _check_plannable(observation_space, "observation space")
 
 
-def _check_vector_space(space: spaces.Space, what: str) -> None:
-    if not isinstance(space, spaces.Box) or is_image_space(space, check_channels=False) or len(space.shape) != 1:
+def _check_plannable(space: spaces.Space, what: str) -> None:
+    if isinstance(space, (spaces.Dict, spaces.Tuple)):
+        raise ValueError(f"UDPO's state planner cannot plan the nested {what} {space}: flatten it first.")
+    if not isinstance(space, (spaces.Box, spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary)):
+        raise ValueError(f"UDPO's state planner cannot plan the {what} {space}: SB3 cannot preprocess it into a vector.")
+    if isinstance(space, spaces.Box) and is_image_space(space, check_channels=False):
         raise ValueError(
-            f"UDPO's state planner predicts flat vector states, but the {what} is {space}. Images are not supported: "
-            "for image targets, train SAC + HER with sb3_pilot.PilotBonusWrapper and a planner distilled from a vector source."
+            f"The {what} is an image ({space}): UDPO's state planner would have to predict the next image as a Gaussian "
+            "over pixels, which it does not do. For image targets, train SAC + HER with sb3_pilot.PilotBonusWrapper and "
+            "a goal planner distilled from a vector source."
         )
 
 
 def planner_state_dim(observation_space: spaces.Space) -> int:
-    """Size of the planner state: ``observation`` (+ ``achieved_goal``) for a Dict, the whole vector for a Box."""
-    if isinstance(observation_space, spaces.Dict):
-        return sum(int(observation_space[key].shape[0]) for key in PLANNER_STATE_KEYS if key in observation_space.spaces)
-    return int(observation_space.shape[0])
+    """Size of the planner state ``s`` (see :func:`planner_state_keys`)."""
+    keys = planner_state_keys(observation_space)
+    if keys:
+        return sum(int(get_flattened_obs_dim(observation_space[key])) for key in keys)  # type: ignore[index]
+    return int(get_flattened_obs_dim(observation_space))
 
 
-class Plan(NamedTuple):
-    """One pass of the decoupled policy: the planner's distribution, the planned state and the action towards it."""
+class PlannerDistribution(NamedTuple):
+    """
+    The state planner's distribution ``h(s' | s, g)`` at a batch of observations: a diagonal Gaussian over ``s' - s``.
+
+    :param state: the planner state ``s`` of the observations
+    :param delta_mean: mean of ``s' - s``
+    :param delta_log_std: log standard deviation of ``s' - s``
+    """
 
     state: th.Tensor
     delta_mean: th.Tensor
     delta_log_std: th.Tensor
-    planned_state: th.Tensor
+
+    @property
+    def mean(self) -> th.Tensor:
+        """The mean planned next state ``E[s']``."""
+        return self.state + self.delta_mean
+
+    def sample(self, deterministic: bool = False) -> th.Tensor:
+        """A reparameterised sample ``s' = s + mu + sigma * eps`` (paper eq. "repara"), or the mean."""
+        if deterministic:
+            return self.mean
+        return self.mean + th.randn_like(self.delta_mean) * th.exp(self.delta_log_std)
+
+    def log_prob(self, next_state: th.Tensor) -> th.Tensor:
+        """``log h(s' | s, g)`` of next states ``s'``, shape ``(batch,)``."""
+        return gaussian_log_prob(next_state - self.state, self.delta_mean, self.delta_log_std)
+
+
+class Plan(NamedTuple):
+    """
+    One pass of the decoupled policy ``pi(a | s, g) = E_{s' ~ h(.|s, g)} [I(a | s, s')]``.
+
+    :param distribution: the planner's distribution ``h(. | s, g)`` (it holds ``s``)
+    :param planned_next_state: the planned next state ``s' ~ h(. | s, g)``
+    :param actions: the squashed action ``a ~ I(. | s, s')`` in ``[-1, 1]``
+    :param log_prob: ``log I(a | s, s')``, shape ``(batch,)``
+    """
+
+    distribution: PlannerDistribution
+    planned_next_state: th.Tensor
     actions: th.Tensor
     log_prob: th.Tensor
+
+    @property
+    def state(self) -> th.Tensor:
+        """The planner state ``s`` the plan starts from."""
+        return self.distribution.state
 
 
 class StatePlanner(BaseModel):
     """
-    Goal-conditioned state planner ``h(s' | s, g)`` (paper section 3.1).
-
-    A diagonal Gaussian over the *change* of the planner state, reparameterised so that gradients reach ``h``
-    through the sampled plan: ``s' = s + mu(s, g) + sigma(s, g) * eps``.
-    The planner state ``s`` is ``observation`` concatenated with ``achieved_goal`` (Dict observations) or the
-    observation itself (Box observations, DePO's goal-free setting); the network sees the whole observation,
-    goals included.
+    Goal-conditioned state planner ``h(s' | s, g)`` (paper section 3.1): a diagonal Gaussian over the *change* of the
+    planner state, reparameterised so that gradients reach ``h`` through the sampled plan,
+    ``s' = s + mu(s, g) + sigma(s, g) * eps``. The network sees the whole observation, goals included.
 
     :param observation_space: Observation space
     :param action_space: Action space (unused by the planner, kept for SB3's model interface)
@@ -118,6 +151,7 @@ class StatePlanner(BaseModel):
     :param features_extractor: Network that flattens (and concatenates) the observation
     :param features_dim: Number of features produced by ``features_extractor``
     :param activation_fn: Activation function
+    :param normalize_images: Whether to divide image entries by 255 (only ``desired_goal`` may be an image)
     """
 
     def __init__(
@@ -128,44 +162,54 @@ class StatePlanner(BaseModel):
         features_extractor: BaseFeaturesExtractor,
         features_dim: int,
         activation_fn: type[nn.Module] = nn.ReLU,
+        normalize_images: bool = True,
     ):
-        super().__init__(observation_space, action_space, features_extractor=features_extractor, normalize_images=False)
+        super().__init__(
+            observation_space, action_space, features_extractor=features_extractor, normalize_images=normalize_images
+        )
         self.net_arch = net_arch
         self.features_dim = features_dim
         self.activation_fn = activation_fn
+        self.state_keys = planner_state_keys(observation_space)
         self.state_dim = planner_state_dim(observation_space)
         # One output layer for mean and log-std: fewer kernel launches on the hot path
         self.net = nn.Sequential(*create_mlp(features_dim, 2 * self.state_dim, net_arch, activation_fn))
 
     def planner_state(self, obs: PyTorchObs) -> th.Tensor:
-        """Planner state ``s`` of a (preprocessed) observation batch."""
-        if isinstance(obs, dict):
-            return th.cat([obs[key] for key in PLANNER_STATE_KEYS if key in obs], dim=1)
-        return obs
+        """
+        Planner state ``s`` of an observation batch: its entries but ``desired_goal``, preprocessed as SB3's networks
+        see them (float, one-hot for discrete entries), flattened and concatenated (see :func:`planner_state_keys`).
+        """
+        return self._flat_state(preprocess_obs(obs, self.observation_space, normalize_images=self.normalize_images))
 
-    def distribution_params(self, obs: PyTorchObs) -> tuple[th.Tensor, th.Tensor, th.Tensor]:
-        """
-        :param obs: preprocessed observation batch
-        :return: planner state ``s``, mean and log-std of the Gaussian over ``s' - s``
-        """
-        delta_mean, log_std = self.net(self.extract_features(obs, self.features_extractor)).chunk(2, dim=-1)
-        return self.planner_state(obs), delta_mean, th.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX)
+    def _flat_state(self, preprocessed: PyTorchObs) -> th.Tensor:
+        if isinstance(preprocessed, dict):
+            return th.cat([preprocessed[key].flatten(1) for key in self.state_keys], dim=1)
+        return preprocessed.flatten(1)
 
-    def plan(self, obs: PyTorchObs, deterministic: bool = False) -> tuple[th.Tensor, th.Tensor, th.Tensor, th.Tensor]:
+    def distribution(self, obs: PyTorchObs) -> PlannerDistribution:
         """
-        :param obs: preprocessed observation batch
-        :param deterministic: return the mean plan instead of a reparameterised sample
-        :return: planner state ``s``, mean and log-std of ``s' - s``, and the planned next state ``s'``
+        :param obs: observation batch as tensors
+        :return: the Gaussian ``h(. | s, g)``
         """
-        state, delta_mean, log_std = self.distribution_params(obs)
-        planned = state + delta_mean
-        if not deterministic:
-            planned = planned + th.randn_like(delta_mean) * th.exp(log_std)
-        return state, delta_mean, log_std, planned
+        # What BaseModel.extract_features does, keeping the preprocessed observation for the planner state
+        preprocessed = preprocess_obs(obs, self.observation_space, normalize_images=self.normalize_images)
+        delta_mean, log_std = self.net(self.features_extractor(preprocessed)).chunk(2, dim=-1)
+        return PlannerDistribution(self._flat_state(preprocessed), delta_mean, th.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX))
+
+    def log_prob(self, obs: PyTorchObs, next_state: th.Tensor) -> th.Tensor:
+        """
+        ``log h(s' | s, g)`` of next planner states.
+
+        :param obs: observation batch
+        :param next_state: planner states ``s'`` (e.g. ``planner_state`` of the next observations)
+        :return: log-likelihoods, shape ``(batch,)``
+        """
+        return self.distribution(obs).log_prob(next_state)
 
     def forward(self, obs: PyTorchObs, deterministic: bool = False) -> th.Tensor:
-        """Planned next state ``s'`` (mean if ``deterministic``, else a reparameterised sample)."""
-        return self.plan(obs, deterministic)[3]
+        """Planned next state ``s'`` (the mean if ``deterministic``, else a reparameterised sample)."""
+        return self.distribution(obs).sample(deterministic)
 
     def _get_constructor_parameters(self) -> dict[str, Any]:
         data = super()._get_constructor_parameters()
@@ -207,7 +251,7 @@ class InverseDynamics(nn.Module):
         return squashed_gaussian_sample(*self.distribution_params(state, next_state), deterministic=deterministic)
 
     def log_prob(self, state: th.Tensor, next_state: th.Tensor, actions: th.Tensor) -> th.Tensor:
-        """Log-likelihood of buffer actions in ``[-1, 1]`` (the supervised loss is its negative)."""
+        """``log I(a | s, s')`` of buffer actions in ``[-1, 1]`` (the supervised loss is its negative)."""
         mean, log_std = self.distribution_params(state, next_state)
         eps = th.finfo(actions.dtype).eps
         return squashed_gaussian_log_prob(th.atanh(actions.clamp(-1.0 + eps, 1.0 - eps)), mean, log_std)
@@ -220,7 +264,7 @@ class UDPOPolicy(BasePolicy):
     Acting samples a plan ``s' ~ h(. | s, g)`` and then an action ``a ~ I(. | s, s')``. The log-probability used for
     the entropy terms is ``log I(a | s, s')`` at the sampled plan (as in DePO), not the intractable marginal.
 
-    :param observation_space: Observation space (flat Box, or Dict of flat Box vectors)
+    :param observation_space: Observation space (see :func:`check_observation_space`)
     :param action_space: Action space (Box)
     :param lr_schedule: Learning rate schedule of the critic (and of the planner if ``planner_lr_schedule`` is None)
     :param net_arch: Hidden layers: a list shared by all networks, or a dict with keys ``pi`` (planner),
@@ -228,11 +272,14 @@ class UDPOPolicy(BasePolicy):
     :param activation_fn: Activation function
     :param features_extractor_class: Features extractor of the planner and critics
     :param features_extractor_kwargs: Keyword arguments for the features extractor
+    :param normalize_images: Whether to divide image entries by 255 (only ``desired_goal`` may be an image)
     :param optimizer_class: Optimizer class
     :param optimizer_kwargs: Optimizer keyword arguments (except the learning rate)
     :param n_critics: Number of critic networks
     :param planner_lr_schedule: Learning rate schedule of the state planner (None: ``lr_schedule``)
     :param inverse_dynamics_lr_schedule: Learning rate schedule of the inverse dynamics (None: ``lr_schedule``)
+    :param freeze_state_planner: hold the state planner fixed (a planner transferred from a source, see
+        :meth:`load_state_planner`): UDPO then trains only the inverse dynamics and the critics
     """
 
     state_planner: StatePlanner
@@ -249,11 +296,13 @@ class UDPOPolicy(BasePolicy):
         activation_fn: type[nn.Module] = nn.ReLU,
         features_extractor_class: type[BaseFeaturesExtractor] = FlattenExtractor,
         features_extractor_kwargs: dict[str, Any] | None = None,
+        normalize_images: bool = True,
         optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
         optimizer_kwargs: dict[str, Any] | None = None,
         n_critics: int = 2,
         planner_lr_schedule: Schedule | None = None,
         inverse_dynamics_lr_schedule: Schedule | None = None,
+        freeze_state_planner: bool = False,
     ):
         check_observation_space(observation_space)
         super().__init__(
@@ -264,7 +313,7 @@ class UDPOPolicy(BasePolicy):
             optimizer_class=optimizer_class,
             optimizer_kwargs=optimizer_kwargs,
             squash_output=True,
-            normalize_images=False,
+            normalize_images=normalize_images,
         )
         if net_arch is None:
             net_arch = [256, 256]
@@ -277,6 +326,7 @@ class UDPOPolicy(BasePolicy):
         self.n_critics = n_critics
         self.planner_lr_schedule = planner_lr_schedule
         self.inverse_dynamics_lr_schedule = inverse_dynamics_lr_schedule
+        self.freeze_state_planner = freeze_state_planner
         self._build(lr_schedule)
 
     def _build(self, lr_schedule: Schedule) -> None:
@@ -288,6 +338,7 @@ class UDPOPolicy(BasePolicy):
             features_extractor=planner_features,
             features_dim=planner_features.features_dim,
             activation_fn=self.activation_fn,
+            normalize_images=self.normalize_images,
         )
         self.inverse_dynamics = InverseDynamics(
             self.state_planner.state_dim, get_action_dim(self.action_space), self.inverse_dynamics_arch, self.activation_fn
@@ -302,17 +353,17 @@ class UDPOPolicy(BasePolicy):
             *self.inverse_dynamics.modules(),
             *self.critic.modules(),
         ]
+        if self.freeze_state_planner:
+            self.state_planner.requires_grad_(False)
 
-        planner_lr = (self.planner_lr_schedule or lr_schedule)(1)
-        inverse_dynamics_lr = (self.inverse_dynamics_lr_schedule or lr_schedule)(1)
         self.state_planner.optimizer = self.optimizer_class(
             self.state_planner.parameters(),
-            lr=planner_lr,
+            lr=(self.planner_lr_schedule or lr_schedule)(1),
             **self.optimizer_kwargs,  # type: ignore[call-arg]
         )
         self.inverse_dynamics.optimizer = self.optimizer_class(
             self.inverse_dynamics.parameters(),
-            lr=inverse_dynamics_lr,
+            lr=(self.inverse_dynamics_lr_schedule or lr_schedule)(1),
             **self.optimizer_kwargs,  # type: ignore[call-arg]
         )
         self.critic.optimizer = self.optimizer_class(
@@ -330,7 +381,7 @@ class UDPOPolicy(BasePolicy):
             features_extractor=features_extractor,
             features_dim=features_extractor.features_dim,
             activation_fn=self.activation_fn,
-            normalize_images=False,
+            normalize_images=self.normalize_images,
             n_critics=self.n_critics,
             share_features_extractor=False,
         )
@@ -348,6 +399,7 @@ class UDPOPolicy(BasePolicy):
             optimizer_kwargs=self.optimizer_kwargs,
             features_extractor_class=self.features_extractor_class,
             features_extractor_kwargs=self.features_extractor_kwargs,
+            freeze_state_planner=self.freeze_state_planner,
         )
         return data
 
@@ -359,32 +411,47 @@ class UDPOPolicy(BasePolicy):
     @property
     def goal_slice(self) -> slice | None:
         """Slice of the planner state that is the achieved goal (the goal mapping ``phi``); None without goals."""
-        if isinstance(self.observation_space, spaces.Dict) and "achieved_goal" in self.observation_space.spaces:
-            goal_dim = int(self.observation_space["achieved_goal"].shape[0])
+        if isinstance(self.observation_space, spaces.Dict) and ACHIEVED_GOAL in self.observation_space.spaces:
+            goal_dim = get_flattened_obs_dim(self.observation_space[ACHIEVED_GOAL])
             return slice(self.state_dim - goal_dim, self.state_dim)
         return None
+
+    def load_state_planner(self, state_dict: dict[str, th.Tensor], source: str = "the source") -> None:
+        """
+        Take the weights of another policy's state planner (PILoT's transfer across action spaces, paper section 3.3).
+        The planner stays frozen if this policy was built with ``freeze_state_planner=True``.
+
+        :param state_dict: ``state_planner.state_dict()`` of the source policy
+        :param source: what the weights come from, for error messages
+        :raises ValueError: if the source planner has another architecture (layer names or shapes)
+        """
+        source_shapes = {name: tuple(value.shape) for name, value in state_dict.items()}
+        target_shapes = {name: tuple(value.shape) for name, value in self.state_planner.state_dict().items()}
+        if source_shapes != target_shapes:
+            raise ValueError(
+                f"The state planner of {source} has another architecture than this policy's: keep its net_arch and "
+                f"features extractor in policy_kwargs (source {source_shapes}, target {target_shapes})."
+            )
+        self.state_planner.load_state_dict(state_dict)
 
     def plan_and_act(self, obs: PyTorchObs, deterministic: bool = False) -> Plan:
         """
         Plan a next state ``s' ~ h(. | s, g)`` and act towards it with ``a ~ I(. | s, s')``.
 
-        :param obs: preprocessed observation batch
+        :param obs: observation batch as tensors
         :param deterministic: use the means of the planner and of the inverse dynamics
-        :return: the planner's distribution, the planned state, the squashed action in ``[-1, 1]`` and
-            ``log I(a | s, s')`` (shape ``(batch,)``)
+        :return: the plan, its action and ``log I(a | s, s')``
         """
-        state, delta_mean, log_std, planned = self.state_planner.plan(obs, deterministic)
-        actions, log_prob = self.inverse_dynamics(state, planned, deterministic=deterministic)
-        return Plan(state, delta_mean, log_std, planned, actions, log_prob)
+        distribution = self.state_planner.distribution(obs)
+        planned_next_state = distribution.sample(deterministic)
+        actions, log_prob = self.inverse_dynamics(distribution.state, planned_next_state, deterministic=deterministic)
+        return Plan(distribution, planned_next_state, actions, log_prob)
 
     def forward(self, obs: PyTorchObs, deterministic: bool = False) -> th.Tensor:
         return self._predict(obs, deterministic=deterministic)
 
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
-        plan = self.plan_and_act(observation, deterministic)
-        # Kept for the plan error that UDPO logs during rollouts
-        self.last_planned_state = plan.planned_state
-        return plan.actions
+        return self.plan_and_act(observation, deterministic).actions
 
     def predict_next_state(self, observation: np.ndarray | dict[str, np.ndarray], deterministic: bool = True) -> np.ndarray:
         """
@@ -416,7 +483,7 @@ MlpPolicy = UDPOPolicy
 
 class MultiInputPolicy(UDPOPolicy):
     """
-    UDPO policy for Dict goal observations (``observation``, ``achieved_goal``, ``desired_goal``).
+    UDPO policy for Dict observations (goal envs: ``observation``, ``achieved_goal``, ``desired_goal``).
 
     :param observation_space: Observation space
     :param action_space: Action space
@@ -433,6 +500,10 @@ class MultiInputPolicy(UDPOPolicy):
         features_extractor_class: type[BaseFeaturesExtractor] = CombinedExtractor,
         **kwargs: Any,
     ):
+        if not isinstance(observation_space, spaces.Dict):
+            raise ValueError(
+                f"MultiInputPolicy needs a Dict observation space, got {observation_space}: use 'MlpPolicy' for it."
+            )
         super().__init__(
             observation_space, action_space, lr_schedule, features_extractor_class=features_extractor_class, **kwargs
         )

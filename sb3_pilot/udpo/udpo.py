@@ -1,24 +1,26 @@
 """Universal Decoupled Policy Optimisation (UDPO), the pre-training stage of PILoT (paper section 3.1)."""
 
-import os
-from collections.abc import Iterator
-from contextlib import contextmanager
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 import torch as th
 from gymnasium import spaces
-from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.buffers import NStepReplayBuffer, ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
-from stable_baselines3.common.utils import FloatSchedule, get_parameters_by_name, polyak_update, update_learning_rate
-from stable_baselines3.common.vec_env import VecNormalize
+from stable_baselines3.common.utils import (
+    FloatSchedule,
+    get_parameters_by_name,
+    obs_as_tensor,
+    polyak_update,
+    update_learning_rate,
+)
 from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
-from torch import nn
 from torch.nn import functional as F
 
+from sb3_pilot.common.utils import check_number, frozen
 from sb3_pilot.udpo.policies import (
     InverseDynamics,
     MlpPolicy,
@@ -26,22 +28,9 @@ from sb3_pilot.udpo.policies import (
     StatePlanner,
     UDPOPolicy,
     check_observation_space,
-    gaussian_log_prob,
 )
 
 SelfUDPO = TypeVar("SelfUDPO", bound="UDPO")
-
-
-@contextmanager
-def frozen(parameters: list[nn.Parameter]) -> Iterator[None]:
-    """Build graphs through these parameters without computing their gradients (they stay untouched)."""
-    for param in parameters:
-        param.requires_grad_(False)
-    try:
-        yield
-    finally:
-        for param in parameters:
-            param.requires_grad_(True)
 
 
 class UDPO(OffPolicyAlgorithm):
@@ -63,10 +52,15 @@ class UDPO(OffPolicyAlgorithm):
     goal mapping ``phi`` is the achieved-goal slice of the state (``policy.goal_slice``); with a Box observation
     (``"MlpPolicy"``) the planner is goal-free (DePO's RL setting). Works with ``HerReplayBuffer``.
 
-    Logged: ``train/critic_loss``, ``train/actor_loss``, ``train/planner_nll``, ``train/inverse_dynamics_loss``,
-    ``train/ent_coef`` (+ ``train/ent_coef_loss``) and ``rollout/plan_error``: the mean squared error, per state
-    dimension, between the planned next state that produced each action and the state actually reached (in the
-    policy's input space), i.e. the paper's "pred-real-mse".
+    Logged: ``train/critic_loss``, ``train/actor_loss``, ``train/planner_nll``, ``train/planner_loss``,
+    ``train/inverse_dynamics_loss``, ``train/ent_coef`` (+ ``train/ent_coef_loss``) and ``rollout/plan_error``, the
+    paper's "pred-real-mse": for each stored transition ``(s, s')``, the mean squared error per state dimension between
+    the planner's mean ``E[h(. | s, g)]`` and ``s'`` (in the policy's input space, i.e. normalised under
+    ``VecNormalize``).
+
+    Differences from SAC that the design imposes: no gSDE (the action comes from the inverse dynamics), no n-step
+    returns (``I`` and ``h`` must fit one-step transitions ``s -> s'``), no image entries in the planner state (``h``
+    predicts the next state as a Gaussian vector).
 
     :param policy: The policy model to use (``"MultiInputPolicy"`` for Dict goal envs, ``"MlpPolicy"``, or a class)
     :param env: The environment to learn from (if registered in Gym, can be str)
@@ -83,6 +77,7 @@ class UDPO(OffPolicyAlgorithm):
     :param replay_buffer_class: Replay buffer class to use (for instance ``HerReplayBuffer``)
     :param replay_buffer_kwargs: Keyword arguments to pass to the replay buffer on creation
     :param optimize_memory_usage: Enable a memory efficient variant of the replay buffer
+    :param n_steps: must be 1: n-step returns would make ``s'`` n steps ahead (accepted for SAC's signature)
     :param ent_coef: Entropy regularization coefficient, ``'auto'`` (or ``'auto_0.1'``) to learn it
     :param target_update_interval: update the target network every ``target_update_interval`` gradient steps
     :param target_entropy: target entropy when learning ``ent_coef`` (``'auto'``: ``-dim(action)``)
@@ -128,6 +123,7 @@ class UDPO(OffPolicyAlgorithm):
         replay_buffer_class: type[ReplayBuffer] | None = None,
         replay_buffer_kwargs: dict[str, Any] | None = None,
         optimize_memory_usage: bool = False,
+        n_steps: int = 1,
         ent_coef: str | float = "auto",
         target_update_interval: int = 1,
         target_entropy: str | float = "auto",
@@ -144,12 +140,23 @@ class UDPO(OffPolicyAlgorithm):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ):
-        if planner_coef < 0:
-            raise ValueError(f"planner_coef (lambda) must be >= 0, got {planner_coef}.")
-        if inverse_dynamics_interval < 1:
-            raise ValueError(f"inverse_dynamics_interval (Delta) must be >= 1 gradient step, got {inverse_dynamics_interval}.")
-        if inverse_dynamics_gradient_steps < 1:
-            raise ValueError(f"inverse_dynamics_gradient_steps must be >= 1, got {inverse_dynamics_gradient_steps}.")
+        check_number("planner_coef (lambda)", planner_coef, minimum=0)
+        for name, rate in (
+            ("learning_rate", learning_rate),
+            ("planner_learning_rate", planner_learning_rate),
+            ("inverse_dynamics_learning_rate", inverse_dynamics_learning_rate),
+        ):
+            if rate is not None and not callable(rate):
+                check_number(name, rate, minimum=0, strict=True)
+        check_number("gamma", gamma, minimum=0)
+        check_number("tau", tau, minimum=0)
+        check_number("inverse_dynamics_interval (Delta)", inverse_dynamics_interval, minimum=1, integer=True)
+        check_number("inverse_dynamics_gradient_steps", inverse_dynamics_gradient_steps, minimum=1, integer=True)
+        no_n_step = "UDPO fits its inverse dynamics and state planner to one-step transitions s -> s'"
+        if n_steps != 1:
+            raise ValueError(f"n_steps={n_steps}: {no_n_step}, which n-step returns would replace by n-step ones.")
+        if isinstance(replay_buffer_class, type) and issubclass(replay_buffer_class, NStepReplayBuffer):
+            raise ValueError(f"{replay_buffer_class.__name__}: {no_n_step}, but its next observations are n steps ahead.")
         super().__init__(
             policy,
             env,
@@ -184,7 +191,6 @@ class UDPO(OffPolicyAlgorithm):
         self.inverse_dynamics_gradient_steps = inverse_dynamics_gradient_steps
         self.planner_learning_rate = planner_learning_rate
         self.inverse_dynamics_learning_rate = inverse_dynamics_learning_rate
-        self.freeze_planner = False
         self._plan_errors: list[float] = []
 
         if _init_setup_model:
@@ -248,23 +254,26 @@ class UDPO(OffPolicyAlgorithm):
             optimizers.append(self.ent_coef_optimizer)
         self._update_learning_rate(optimizers)
         update_learning_rate(self.state_planner.optimizer, self.planner_lr_schedule(self._current_progress_remaining))
+        train_planner = not self.policy.freeze_state_planner
 
         ent_coef_losses, ent_coefs = [], []
-        actor_losses, critic_losses, planner_nlls = [], [], []
+        actor_losses, critic_losses, planner_nlls, planner_losses = [], [], [], []
 
-        for _ in range(gradient_steps):
-            if self._n_updates % self.inverse_dynamics_interval == 0:
+        for gradient_step in range(gradient_steps):
+            # I is refitted before the policy update that follows it (paper section 3.1, Algorithm 1)
+            if (self._n_updates + gradient_step) % self.inverse_dynamics_interval == 0:
                 self.train_inverse_dynamics(self.inverse_dynamics_gradient_steps, batch_size)
-            self._n_updates += 1
 
             replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
             discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
 
-            # The graph of the actor loss reaches the planner only: the inverse dynamics is held fixed
+            # a ~ I(. | s, s') at a reparameterised plan s' = h(eps; s, g) (eq. "repara"); I is held fixed, so the
+            # graph of the actor loss reaches the planner only
             with frozen(self._inverse_dynamics_parameters):
                 plan = self.policy.plan_and_act(replay_data.observations)
             log_prob = plan.log_prob.reshape(-1, 1)
 
+            # Entropy coefficient loss (SAC), with log I(a | s, s') as the policy's log-probability
             ent_coef_loss = None
             if self.ent_coef_optimizer is not None and self.log_ent_coef is not None:
                 ent_coef = th.exp(self.log_ent_coef.detach())
@@ -279,6 +288,8 @@ class UDPO(OffPolicyAlgorithm):
                 ent_coef_loss.backward()
                 self.ent_coef_optimizer.step()
 
+            # Critic loss (SAC): 1/2 sum_i (Q_i(s, a, g) - y)^2,
+            # y = r + gamma (1 - d) (min_i Q'_i(s', a', g) - alpha log I(a' | s', s'')), s'' ~ h(. | s', g)
             with th.no_grad():
                 next_plan = self.policy.plan_and_act(replay_data.next_observations)
                 next_q_values = th.cat(self.critic_target(replay_data.next_observations, next_plan.actions), dim=1)
@@ -294,29 +305,37 @@ class UDPO(OffPolicyAlgorithm):
             critic_loss.backward()
             self.critic.optimizer.step()
 
-            # Planner: SAC actor loss through the frozen inverse dynamics + lambda * NLL of the real transition
+            # DePG actor loss (eq. "depg"): E[alpha log I(a | s, s') - min_i Q_i(s, a, g)] through the frozen I
             with frozen(self._critic_parameters):  # no critic weight gradients from the actor loss: they would be discarded
                 q_values_pi = th.cat(self.critic(replay_data.observations, plan.actions), dim=1)
             min_qf_pi, _ = th.min(q_values_pi, dim=1, keepdim=True)
             actor_loss = (ent_coef * log_prob - min_qf_pi).mean()
+            # Planner likelihood term (the paper's constraint max E_{(s,s') ~ pi}[h(s' | s, g)]): -log h(s'_real | s, g)
             real_next_state = self.state_planner.planner_state(replay_data.next_observations)
-            planner_nll = -gaussian_log_prob(real_next_state - plan.state, plan.delta_mean, plan.delta_log_std).mean()
+            planner_nll = -plan.distribution.log_prob(real_next_state).mean()
+            # Planner loss: the final planner gradient of section 3.1, DePG + lambda * likelihood term
+            planner_loss = actor_loss + self.planner_coef * planner_nll
             actor_losses.append(actor_loss.item())
             planner_nlls.append(planner_nll.item())
-            if not self.freeze_planner:
+            planner_losses.append(planner_loss.item())
+            if train_planner:
                 self.state_planner.optimizer.zero_grad()
-                (actor_loss + self.planner_coef * planner_nll).backward()
+                planner_loss.backward()
                 self.state_planner.optimizer.step()
 
-            if self._n_updates % self.target_update_interval == 0:
+            # Target critics: SAC's rule
+            if gradient_step % self.target_update_interval == 0:
                 polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
                 polyak_update(self.batch_norm_stats, self.batch_norm_stats_target, 1.0)
+
+        self._n_updates += gradient_steps
 
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         self.logger.record("train/ent_coef", np.mean(ent_coefs))
         self.logger.record("train/actor_loss", np.mean(actor_losses))
         self.logger.record("train/critic_loss", np.mean(critic_losses))
         self.logger.record("train/planner_nll", np.mean(planner_nlls))
+        self.logger.record("train/planner_loss", np.mean(planner_losses))
         if len(ent_coef_losses) > 0:
             self.logger.record("train/ent_coef_loss", np.mean(ent_coef_losses))
 
@@ -352,15 +371,6 @@ class UDPO(OffPolicyAlgorithm):
         self.logger.record("train/inverse_dynamics_loss", mean_loss)
         return mean_loss
 
-    def _sample_action(
-        self,
-        learning_starts: int,
-        action_noise: ActionNoise | None = None,
-        n_envs: int = 1,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        self.policy.last_planned_state = None
-        return super()._sample_action(learning_starts, action_noise, n_envs)
-
     def _store_transition(
         self,
         replay_buffer: ReplayBuffer,
@@ -370,26 +380,44 @@ class UDPO(OffPolicyAlgorithm):
         dones: np.ndarray,
         infos: list[dict[str, Any]],
     ) -> None:
-        planned = self.policy.last_planned_state
-        if planned is not None:
-            reached = self._reached_planner_state(new_obs, dones, infos)
-            self._plan_errors.append(float(np.mean((planned.cpu().numpy() - reached) ** 2)))
+        self._plan_errors.append(self.plan_error(self._last_obs, self._reached_observation(new_obs, dones, infos)))  # type: ignore[arg-type]
         super()._store_transition(replay_buffer, buffer_action, new_obs, reward, dones, infos)
 
-    def _reached_planner_state(
-        self, new_obs: np.ndarray | dict[str, np.ndarray], dones: np.ndarray, infos: list[dict[str, Any]]
-    ) -> np.ndarray:
-        """Planner state reached by the last step, in the policy's input space (terminal observations at resets)."""
-        keys = [key for key in ("observation", "achieved_goal") if isinstance(new_obs, dict) and key in new_obs]
+    @staticmethod
+    def _reached_observation(
+        new_obs: np.ndarray | dict[str, np.ndarray], dones: np.ndarray, infos: list[dict[str, Any]]
+    ) -> np.ndarray | dict[str, np.ndarray]:
+        """The observations the last step reached: ``new_obs``, but the terminal observation where an episode ended."""
+        ended = [idx for idx, done in enumerate(dones) if done and infos[idx].get("terminal_observation") is not None]
+        if not ended:
+            return new_obs
+        if isinstance(new_obs, dict):
+            reached = {key: np.array(value) for key, value in new_obs.items()}
+            for idx in ended:
+                for key in reached:
+                    reached[key][idx] = infos[idx]["terminal_observation"][key]
+            return reached
+        reached_array = np.array(new_obs)
+        for idx in ended:
+            reached_array[idx] = infos[idx]["terminal_observation"]
+        return reached_array
 
-        def state_of(obs: np.ndarray | dict[str, np.ndarray]) -> np.ndarray:
-            return np.concatenate([obs[key] for key in keys], axis=-1) if keys else np.asarray(obs)  # type: ignore[index]
+    def plan_error(
+        self, observations: np.ndarray | dict[str, np.ndarray], next_observations: np.ndarray | dict[str, np.ndarray]
+    ) -> float:
+        """
+        The paper's "pred-real-mse" of transitions: mean squared error, per state dimension and transition, between
+        the planner's mean next state ``E[h(. | s, g)]`` and the reached planner state ``s'``.
 
-        reached = state_of(new_obs).astype(np.float32, copy=True)
-        for env_idx, done in enumerate(dones):
-            if done and infos[env_idx].get("terminal_observation") is not None:
-                reached[env_idx] = state_of(infos[env_idx]["terminal_observation"])
-        return reached
+        :param observations: batch of observations ``s`` (as the policy sees them)
+        :param next_observations: the batch of observations reached from them
+        :return: the mean squared error
+        """
+        with th.no_grad():
+            planner = self.state_planner
+            planned = planner.distribution(obs_as_tensor(observations, self.device)).mean
+            reached = planner.planner_state(obs_as_tensor(next_observations, self.device))
+            return F.mse_loss(planned, reached).item()
 
     def dump_logs(self) -> None:
         if self._plan_errors:
@@ -407,33 +435,6 @@ class UDPO(OffPolicyAlgorithm):
         """
         return self.policy.predict_next_state(observation, deterministic=deterministic)
 
-    @classmethod
-    def load_planner_from(
-        cls: type[SelfUDPO],
-        source: "UDPO | str | os.PathLike",
-        env: GymEnv | str,
-        freeze: bool = True,
-        source_vec_normalize: VecNormalize | str | os.PathLike | None = None,
-        **kwargs: Any,
-    ) -> SelfUDPO:
-        """
-        Build a UDPO for ``env`` whose state planner is copied from ``source`` and whose inverse dynamics is learned
-        from scratch: PILoT's transfer to another action space (the High-Dim-Action challenge).
-
-        See :func:`sb3_pilot.transfer.load_planner_from` for the checks (planner-state size, observation space,
-        ``VecNormalize`` statistics carried over).
-
-        :param source: a trained UDPO or the path of its zip
-        :param env: the target environment (same observation space, any Box action space)
-        :param freeze: keep the transferred planner fixed during training
-        :param source_vec_normalize: the source's ``VecNormalize`` (or its saved path) if it was trained with one
-        :param kwargs: keyword arguments of the target UDPO
-        :return: the target model
-        """
-        from sb3_pilot.transfer import load_planner_from  # the transfer stage builds on this module
-
-        return load_planner_from(cls, source, env, freeze=freeze, source_vec_normalize=source_vec_normalize, **kwargs)
-
     def learn(
         self: SelfUDPO,
         total_timesteps: int,
@@ -443,14 +444,7 @@ class UDPO(OffPolicyAlgorithm):
         reset_num_timesteps: bool = True,
         progress_bar: bool = False,
     ) -> SelfUDPO:
-        return super().learn(
-            total_timesteps=total_timesteps,
-            callback=callback,
-            log_interval=log_interval,
-            tb_log_name=tb_log_name,
-            reset_num_timesteps=reset_num_timesteps,
-            progress_bar=progress_bar,
-        )
+        return super().learn(total_timesteps, callback, log_interval, tb_log_name, reset_num_timesteps, progress_bar)
 
     def _excluded_save_params(self) -> list[str]:
         return [

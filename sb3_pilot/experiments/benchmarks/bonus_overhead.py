@@ -5,7 +5,7 @@ Both models are built once and trained in alternating chunks in the same process
 alike); the ratio is wrapped steps/s over unwrapped steps/s. The wrapped run uses PilotHerReplayBuffer and an
 untrained goal planner (default: the default distillation size; its weights do not change its cost).
 
-    python -m sb3_pilot.benchmarks.bonus_overhead --env Pilot/Maze2D-v0 --rounds 4 --chunk 1000
+    python -m sb3_pilot.experiments.benchmarks.bonus_overhead --env Pilot/Maze2D-v0 --rounds 4 --chunk 1000
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ import time
 import gymnasium as gym
 from stable_baselines3 import SAC, HerReplayBuffer
 
+from sb3_pilot.distill import GoalPlanner
 from sb3_pilot.envs import register_envs
-from sb3_pilot.planner import GoalPlanner
-from sb3_pilot.wrappers import PilotBonusWrapper, PilotHerReplayBuffer
+from sb3_pilot.transfer import PilotBonusWrapper, PilotHerReplayBuffer
 
 
 def make_sac(env: gym.Env, replay_buffer_class: type[HerReplayBuffer], seed: int) -> SAC:

@@ -3,7 +3,7 @@ Random-action steps per second of every ``Pilot/`` task beside the Gymnasium(-Ro
 
 Usage (image tasks need a renderer: ``MUJOCO_GL=osmesa`` on a headless machine)::
 
-    MUJOCO_GL=osmesa python -m sb3_pilot.benchmarks.env_speed [--steps 2000] [--image-steps 500]
+    MUJOCO_GL=osmesa python -m sb3_pilot.experiments.benchmarks.env_speed [--steps 2000] [--image-steps 500]
 
 Both sides are made with ``gym.make`` (same wrapper stack) and reset when an episode ends; the overhead
 is the ratio of the time per step of the ``Pilot/`` task to that of its reference (below 1: faster).

@@ -10,7 +10,7 @@ The smallest genuine PILoT pipeline (``make demo``): the High-Dim-Action challen
 
 All three use RL-Zoo's FetchReach settings, VecNormalize included (``RL_ZOO_FETCH_NORMALIZED``).
 
-    python -m sb3_pilot.demo [--root zoo_runs/demo] [--steps 4000] [--source-steps 5000] [--seed 0]
+    python -m sb3_pilot.experiments.demo [--root zoo_runs/demo] [--steps 4000] [--source-steps 5000] [--seed 0]
 
 Reruns resume: finished stages are skipped. The numbers are what one seed gives at this budget, not a verdict.
 """
@@ -23,8 +23,8 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from sb3_pilot.challenges import BUDGETS, CHALLENGES, run_challenge
-from sb3_pilot.plots import plot_challenge
+from sb3_pilot.experiments.challenges import BUDGETS, CHALLENGES, run_challenge
+from sb3_pilot.experiments.plots import plot_challenge
 
 CHALLENGE = "high-dim-action"
 
@@ -32,7 +32,7 @@ CHALLENGE = "high-dim-action"
 def main(argv: list[str] | None = None) -> None:
     """Run the demo and print what it measured."""
     parser = argparse.ArgumentParser(
-        prog="python -m sb3_pilot.demo", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog="python -m sb3_pilot.experiments.demo", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--root", default="zoo_runs/demo", help="output root (models under ROOT/high-dim-action/models)")
     parser.add_argument("--source-steps", type=int, default=5000, help="env steps of the source UDPO")

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sb3_pilot.challenges.stages import Budget, Distill, Guidance, Stage, ZooTrain
+from sb3_pilot.experiments.challenges.stages import Budget, Distill, Guidance, Stage, ZooTrain
 
 BUDGETS: dict[str, Budget] = {
     "smoke": Budget(
@@ -94,15 +94,18 @@ def _bonus(planner_stage: str) -> Any:
     """``-params`` of a HER + PILoT stage: the bonus wrapper on the planner distilled by ``planner_stage``."""
 
     def params(outputs: dict[str, Path]) -> dict[str, Any]:
-        wrapper = {"sb3_pilot.zoo.pilot_bonus_wrapper": {"planner": str(outputs[planner_stage]), "beta": 1.0}}
+        wrapper = {"sb3_pilot.PilotBonusWrapper": {"planner": str(outputs[planner_stage]), "beta": 1.0}}
         return {"env_wrapper": [wrapper]}
 
     return params
 
 
 def _state_planner_transfer(outputs: dict[str, Path]) -> dict[str, Any]:
-    """``-params`` of the High-Dim target: the source UDPO's state planner, copied and frozen when training starts."""
-    return {"callback": [{"sb3_pilot.zoo.StatePlannerTransfer": {"source": str(outputs["source"]), "freeze": True}}]}
+    """``-params`` of the High-Dim target: the source UDPO's state planner, copied when training starts, frozen."""
+    return {
+        "callback": [{"sb3_pilot.transfer.StatePlannerTransferCallback": {"source": str(outputs["source"])}}],
+        "policy_kwargs": {"freeze_state_planner": True},
+    }
 
 
 HER, PILOT_BONUS = "SAC+HER (scratch)", "HER+PILoT (bonus)"

@@ -3,7 +3,8 @@ The paper's High-Dim-Action challenge on Fetch-Reach: a source UDPO on Pilot/Fet
 Pilot/FetchReachHighDim-v0 (8-dim actions, other action dynamics, 80% gravity), a target UDPO with the transferred,
 frozen state planner (only inverse dynamics and critics learn) against SAC + HER from scratch. Success vs env steps.
 
-    OMP_NUM_THREADS=1 python -m sb3_pilot.benchmarks.high_dim_transfer --source-steps 5000 --steps 5000 --seeds 0 1 2
+    OMP_NUM_THREADS=1 python -m sb3_pilot.experiments.benchmarks.high_dim_transfer \
+        --source-steps 5000 --steps 5000 --seeds 0 1 2
 
 All models use RL-Zoo's FetchReach settings (64x64 nets, VecNormalize, gamma 0.95, lr 1e-3, batch 256, HER);
 the target carries the source's VecNormalize statistics (frozen with the planner).
@@ -86,7 +87,7 @@ def main() -> None:
         source = UDPO("MultiInputPolicy", source_env, seed=seed, **common_kwargs(), **UDPO_KWARGS)
         source.learn(args.source_steps)
         print(f"seed {seed}: source UDPO success {success_rate(source, SOURCE_ID, args.eval_episodes):.2f}", flush=True)
-        target = load_planner_from(UDPO, source, gym.make(TARGET_ID), seed=seed, **common_kwargs(), **UDPO_KWARGS)
+        target = load_planner_from(source, gym.make(TARGET_ID), seed=seed, **common_kwargs(), **UDPO_KWARGS)
         results["pilot_transfer"].append(learning_curve(target, TARGET_ID, args))
         scratch_env = VecNormalize(make_vec_env(TARGET_ID, seed=seed), norm_reward=False)
         results["sac_her"].append(

@@ -5,7 +5,7 @@ Both algorithms use RL-Zoo's FetchReach settings (64x64 nets, VecNormalize, gamm
 HER future with 4 sampled goals, 1000 warm-up steps) and are trained alternately, chunk by chunk, in the same
 process, so that machine noise hits both alike. Usage::
 
-    python -m sb3_pilot.benchmarks.udpo_vs_sac --seeds 0 1 2 --steps 6000
+    python -m sb3_pilot.experiments.benchmarks.udpo_vs_sac --seeds 0 1 2 --steps 6000
 
 Both run with the same number of torch threads (``--threads``, 1 by default).
 """

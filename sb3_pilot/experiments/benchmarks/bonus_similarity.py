@@ -3,7 +3,8 @@ Which similarity should PilotBonusWrapper use? Success vs env steps of SAC + HER
 inside the workspace (Pilot/Maze2D-v0: the origin is the U-maze's central wall), without bonus and with the bonus
 of each similarity, from one goal planner distilled from a UDPO source trained on the same maze.
 
-    OMP_NUM_THREADS=1 python -m sb3_pilot.benchmarks.bonus_similarity --source-steps 10000 --steps 10000 --seeds 0 1
+    OMP_NUM_THREADS=1 python -m sb3_pilot.experiments.benchmarks.bonus_similarity \
+        --source-steps 10000 --steps 10000 --seeds 0 1
 
 Success is that of the final step of deterministic evaluation episodes (the env's ``is_success``).
 """
@@ -19,11 +20,11 @@ import numpy as np
 from stable_baselines3 import SAC, HerReplayBuffer
 from stable_baselines3.common.base_class import BaseAlgorithm
 
-from sb3_pilot.distill import distill_goal_planner
+from sb3_pilot.distill import GoalPlanner, distill_goal_planner
 from sb3_pilot.envs import register_envs
-from sb3_pilot.planner import GoalPlanner
+from sb3_pilot.transfer import PilotBonusWrapper, PilotHerReplayBuffer
+from sb3_pilot.transfer.bonus import SIMILARITIES
 from sb3_pilot.udpo import UDPO
-from sb3_pilot.wrappers import SIMILARITIES, PilotBonusWrapper, PilotHerReplayBuffer
 
 ENV_ID = "Pilot/Maze2D-v0"
 

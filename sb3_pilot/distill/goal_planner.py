@@ -2,24 +2,22 @@
 
 from __future__ import annotations
 
-import math
 import os
+import pickle
 import warnings
+import zipfile
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 import torch as th
+from gymnasium import spaces
 from stable_baselines3.common.torch_layers import create_mlp
-from stable_baselines3.common.vec_env import VecEnv
 from torch import nn
 
+from sb3_pilot.common.distributions import LOG_STD_MAX, LOG_STD_MIN, gaussian_log_prob
+from sb3_pilot.common.utils import check_number, task_id
 from sb3_pilot.version import __version__
-
-# Same bounds as the state planner's Gaussian (in units of the goal-change scale)
-LOG_STD_MIN = -20.0
-LOG_STD_MAX = 2.0
-_HALF_LOG_2PI = 0.5 * math.log(2 * math.pi)
 
 #: Groups of task IDs whose goals have the same meaning in the same coordinates (the paper's transfer pairs):
 #: a planner distilled on one task of a group may plan for any task of the group.
@@ -52,22 +50,6 @@ def shares_goal_space(source_task: str, target_task: str) -> bool:
     return source_task == target_task or any({source_task, target_task} <= group for group in SHARED_GOAL_SPACES)
 
 
-def task_id(env: gym.Env | VecEnv) -> str:
-    """
-    Name of the task an env (or the first env of a ``VecEnv``) runs: its Gymnasium ID, or the class name of the
-    unwrapped env when it was not made with ``gym.make``.
-    """
-    if isinstance(env, VecEnv):
-        spec = env.get_attr("spec", indices=[0])[0]
-        return spec.id if spec is not None else type(env.get_attr("unwrapped", indices=[0])[0]).__name__
-    return env.spec.id if env.spec is not None else type(env.unwrapped).__name__
-
-
-def diagonal_gaussian_nll(value: th.Tensor, mean: th.Tensor, log_std: th.Tensor) -> th.Tensor:
-    """Negative log-density of a diagonal Gaussian, summed over the last dimension."""
-    return (0.5 * ((value - mean) * th.exp(-log_std)) ** 2 + log_std + _HALF_LOG_2PI).sum(dim=-1)
-
-
 class GoalPlanner(nn.Module):
     """
     Goal planner ``f(g' | g, g_target)`` (paper section 3.2): a diagonal Gaussian MLP over the change of goal
@@ -95,8 +77,7 @@ class GoalPlanner(nn.Module):
         metadata: dict[str, Any] | None = None,
     ):
         super().__init__()
-        if goal_dim < 1:
-            raise ValueError(f"goal_dim must be >= 1, got {goal_dim}.")
+        check_number("goal_dim", goal_dim, minimum=1, integer=True)
         self.goal_dim = goal_dim
         self.net_arch = [256, 256] if net_arch is None else list(net_arch)
         self.activation_fn = activation_fn
@@ -140,7 +121,7 @@ class GoalPlanner(nn.Module):
     def nll(self, next_goal: th.Tensor, achieved_goal: th.Tensor, desired_goal: th.Tensor) -> th.Tensor:
         """Negative log-likelihood ``-log f(g' | g, g_target)`` of next goals, shape (n,)."""
         delta_mean, log_std = self.distribution_params(achieved_goal, desired_goal)
-        return diagonal_gaussian_nll(next_goal - achieved_goal, delta_mean, log_std)
+        return -gaussian_log_prob(next_goal - achieved_goal, delta_mean, log_std)
 
     def forward(self, achieved_goal: th.Tensor, desired_goal: th.Tensor, deterministic: bool = True) -> th.Tensor:
         """Next goal ``g'`` (the mean if ``deterministic``, else a sample)."""
@@ -184,8 +165,7 @@ class GoalPlanner(nn.Module):
         :param deterministic: chain the means instead of samples
         :return: landmarks, shape (horizon, goal_dim) or (n, horizon, goal_dim)
         """
-        if horizon < 1:
-            raise ValueError(f"horizon must be >= 1, got {horizon}.")
+        check_number("horizon", horizon, minimum=1, integer=True)
         landmarks, goal = [], achieved_goal
         for _ in range(horizon):
             goal = self.predict(goal, desired_goal, deterministic=deterministic)
@@ -211,8 +191,21 @@ class GoalPlanner(nn.Module):
 
         :param path: file written by :meth:`save`
         :param device: device to load the planner on
+        :raises ValueError: if the file is not a goal planner written by :meth:`save`
         """
-        data = th.load(path, map_location=device, weights_only=True)
+        if not os.path.isfile(path):
+            raise FileNotFoundError(f"No goal planner file at {path}.")
+        not_a_planner = f"{path} is not a goal planner written by GoalPlanner.save"
+        try:
+            data = th.load(path, map_location=device, weights_only=True)
+        except (pickle.UnpicklingError, RuntimeError, EOFError, zipfile.BadZipFile, ValueError) as error:
+            raise ValueError(f"{not_a_planner}: torch cannot read it ({type(error).__name__}).") from error
+        missing = {"state_dict", "net_arch", "activation_fn", "metadata"} - set(data) if isinstance(data, dict) else None
+        if missing is None or missing or "goal_dim" not in data["metadata"]:
+            content = sorted(data) if isinstance(data, dict) else type(data).__name__
+            raise ValueError(f"{not_a_planner}: it holds {content}.")
+        if not isinstance(getattr(nn, data["activation_fn"], None), type):
+            raise ValueError(f"{not_a_planner}: unknown activation function {data['activation_fn']!r}.")
         metadata = data["metadata"]
         if metadata.get("sb3_pilot_version") != __version__:
             warnings.warn(
@@ -221,3 +214,43 @@ class GoalPlanner(nn.Module):
         planner = cls(metadata["goal_dim"], data["net_arch"], getattr(nn, data["activation_fn"]), metadata=metadata)
         planner.load_state_dict(data["state_dict"])
         return planner.to(device)
+
+    @classmethod
+    def for_env(cls, planner: GoalPlanner | str | os.PathLike, env: gym.Env) -> GoalPlanner:
+        """
+        The planner (loaded, if a path is given), after :meth:`check_env` has accepted ``env``.
+
+        :param planner: a goal planner or the path of its file
+        :param env: the goal env it will plan for
+        """
+        planner = planner if isinstance(planner, GoalPlanner) else cls.load(planner)
+        planner.check_env(env)
+        return planner
+
+    def check_env(self, env: gym.Env) -> None:
+        """
+        Refuse an env this planner cannot plan for: one whose goal entries have another size, or whose task does not
+        share the goal space of the planner's source task (see :func:`share_goal_space`).
+
+        :param env: a goal env (Dict observation with ``achieved_goal`` and ``desired_goal``)
+        :raises ValueError: naming what does not fit
+        """
+        obs_space = env.observation_space
+        if not isinstance(obs_space, spaces.Dict) or not {"achieved_goal", "desired_goal"} <= set(obs_space.spaces):
+            raise ValueError(
+                f"A goal planner needs a goal env (Dict observation with 'achieved_goal' and 'desired_goal'), got {obs_space}."
+            )
+        for key in ("achieved_goal", "desired_goal"):
+            if obs_space[key].shape != (self.goal_dim,):
+                raise ValueError(
+                    f"The goal planner plans {self.goal_dim}-dim goals but the env's '{key}' has shape {obs_space[key].shape}."
+                )
+        target_task = task_id(env)
+        if self.source_task is None:
+            raise ValueError("The goal planner has no 'source_task' in its metadata: distil it with distill_goal_planner.")
+        if not shares_goal_space(self.source_task, target_task):
+            raise ValueError(
+                f"The goal planner was distilled on '{self.source_task}', whose goal space is not that of '{target_task}'. "
+                "If their goals have the same meaning in the same coordinates, declare it with "
+                f"sb3_pilot.share_goal_space({self.source_task!r}, {target_task!r})."
+            )

@@ -1,14 +1,23 @@
-"""State-planner transfer across action spaces (paper section 3.3, the High-Dim-Action challenge)."""
+"""
+State-planner transfer across action spaces (paper section 3.3, the High-Dim-Action challenge): a target UDPO takes a
+source UDPO's state planner ``h(s' | s, g)``, frozen, and learns only its own inverse dynamics (and critics).
+
+One operation, two entry points: :func:`load_planner_from` (Python) and :class:`StatePlannerTransferCallback` (the
+RL Zoo's YAML); both hand the weights to :meth:`UDPOPolicy.load_state_planner`.
+"""
 
 from __future__ import annotations
 
 import copy
 import os
 import pickle
+from pathlib import Path
 from typing import Any, TypeVar
 
 from gymnasium import spaces
 from stable_baselines3.common.base_class import BaseAlgorithm, maybe_make_env
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.save_util import load_from_zip_file
 from stable_baselines3.common.type_aliases import GymEnv
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize, is_vecenv_wrapped
 
@@ -16,8 +25,10 @@ from sb3_pilot.udpo import UDPO
 
 SelfUDPO = TypeVar("SelfUDPO", bound=UDPO)
 
-# Set by UDPO._setup_model from the algorithm's own learning rates: never carried over
-_LR_SCHEDULE_KWARGS = ("planner_lr_schedule", "inverse_dynamics_lr_schedule")
+# Set by UDPO._setup_model from the algorithm's own learning rates, and the target's own choice: never carried over
+_TARGET_POLICY_KWARGS = ("planner_lr_schedule", "inverse_dynamics_lr_schedule", "freeze_state_planner")
+#: Prefix of the state planner's weights in a saved UDPO policy.
+_PLANNER_PREFIX = "state_planner."
 
 
 def observation_space_mismatch(source: spaces.Space, target: spaces.Space) -> str | None:
@@ -53,17 +64,8 @@ def _normalize_like(venv: VecEnv, source: VecNormalize, training: bool) -> VecNo
     Wrap ``venv`` in a new ``VecNormalize`` with the settings and statistics of ``source``. (``VecNormalize.load``
     would keep the saved spaces, among them the source's action space.)
     """
-    target = VecNormalize(
-        venv,
-        training=training,
-        norm_obs=source.norm_obs,
-        norm_reward=source.norm_reward,
-        clip_obs=source.clip_obs,
-        clip_reward=source.clip_reward,
-        gamma=source.gamma,
-        epsilon=source.epsilon,
-        norm_obs_keys=source.norm_obs_keys,
-    )
+    settings = ("norm_obs", "norm_reward", "clip_obs", "clip_reward", "gamma", "epsilon", "norm_obs_keys")
+    target = VecNormalize(venv, training=training, **{name: getattr(source, name) for name in settings})
     copy_normalization_statistics(source, target, training=training)
     return target
 
@@ -106,11 +108,11 @@ def copy_normalization_statistics(source: VecNormalize, target: VecNormalize, tr
 
 
 def load_planner_from(
-    algorithm_class: type[SelfUDPO],
     source: UDPO | str | os.PathLike,
     env: GymEnv | str,
     freeze: bool = True,
     source_vec_normalize: VecNormalize | str | os.PathLike | None = None,
+    algorithm_class: type[SelfUDPO] = UDPO,  # type: ignore[assignment]
     **udpo_kwargs: Any,
 ) -> SelfUDPO:
     """
@@ -122,12 +124,13 @@ def load_planner_from(
     new ``VecNormalize`` carrying the source's settings and statistics (its spaces are ``env``'s), frozen
     (``training=False``) when the planner is; if it did not, ``env`` must not be normalised either.
 
-    :param algorithm_class: the target's class (``UDPO`` or a subclass)
     :param source: the source model, or the path of its saved zip
     :param env: the target env (not wrapped in ``VecNormalize``: the source decides)
-    :param freeze: keep the planner (and its input statistics) unchanged while the target trains
+    :param freeze: keep the planner (and its input statistics) unchanged while the target trains (the target policy's
+        ``freeze_state_planner``)
     :param source_vec_normalize: the source's ``VecNormalize`` (or the path of its ``.save``) when ``source`` is a path
         to a model trained with it; a source model carries its own
+    :param algorithm_class: the target's class (``UDPO`` or a subclass)
     :param udpo_kwargs: arguments of the target (``policy`` defaults to the source's; ``policy_kwargs`` are merged
         over the source's, and must keep the planner's architecture)
     :return: the target model
@@ -141,7 +144,7 @@ def load_planner_from(
     else:
         # Only the policy is needed: no replay buffer (a HER buffer could not be built without the source's env)
         no_buffer = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}
-        source_model = algorithm_class.load(source, device="cpu", custom_objects=no_buffer)
+        source_model = UDPO.load(source, device="cpu", custom_objects=no_buffer)
         source_norm = None if source_vec_normalize is None else load_vec_normalize(source_vec_normalize)
 
     venv = BaseAlgorithm._wrap_env(maybe_make_env(env, verbose=0))
@@ -157,22 +160,77 @@ def load_planner_from(
         venv = _normalize_like(venv, source_norm, training=not freeze)
 
     policy = udpo_kwargs.pop("policy", source_model.policy_class)
-    policy_kwargs = {key: value for key, value in source_model.policy_kwargs.items() if key not in _LR_SCHEDULE_KWARGS}
+    policy_kwargs = {key: value for key, value in source_model.policy_kwargs.items() if key not in _TARGET_POLICY_KWARGS}
     policy_kwargs.update(udpo_kwargs.pop("policy_kwargs", None) or {})
+    policy_kwargs["freeze_state_planner"] = freeze
     target = algorithm_class(policy, venv, policy_kwargs=policy_kwargs, **udpo_kwargs)
-
-    source_planner, target_planner = source_model.policy.state_planner, target.policy.state_planner
-    if source_planner.state_dim != target_planner.state_dim:
-        raise ValueError(f"Planner-state sizes differ: source {source_planner.state_dim}, target {target_planner.state_dim}.")
-    source_shapes = {name: tuple(value.shape) for name, value in source_planner.state_dict().items()}
-    target_shapes = {name: tuple(value.shape) for name, value in target_planner.state_dict().items()}
-    if source_shapes != target_shapes:
-        raise ValueError(
-            "The target's state planner has another architecture than the source's: keep the source's net_arch / "
-            f"features extractor in policy_kwargs (source {source_shapes}, target {target_shapes})."
-        )
-    target_planner.load_state_dict(source_planner.state_dict())
-    if freeze:
-        target.freeze_planner = True
-        target_planner.requires_grad_(False)
+    target.policy.load_state_planner(source_model.policy.state_planner.state_dict(), source="the source model")
     return target
+
+
+class StatePlannerTransferCallback(BaseCallback):
+    """
+    The RL Zoo's entry to :func:`load_planner_from`: when training starts, the model being trained (a UDPO) takes the
+    state planner of a source UDPO saved by the zoo. Freezing is the target policy's choice, made in its YAML
+    (``policy_kwargs: "dict(freeze_state_planner=True)"``)::
+
+        callback:
+          - sb3_pilot.transfer.StatePlannerTransferCallback:
+              source: logs/udpo/Pilot-FetchReach-v0_1/Pilot-FetchReach-v0.zip
+
+    The planner must see states scaled as it was trained: if the source was trained with ``normalize`` (the zoo
+    saves its statistics as ``<log folder>/udpo/<env>_<id>/<env>/vecnormalize.pkl``, next to the zip), the target
+    must be too, and its ``VecNormalize`` gets the source's statistics (``obs_rms`` and ``ret_rms``, deep copies;
+    its spaces stay the target's), frozen (``training=False``) when the planner is; the zoo's evaluation env copies
+    them from there. A source without ``normalize`` needs a target without it. Continuing a run with ``-i`` copies
+    the source planner (and statistics) again.
+
+    :param source: the source model's zip (the zoo saves it as ``<log folder>/udpo/<env>_<id>/<env>.zip``)
+    :param source_vec_normalize: the source's ``vecnormalize.pkl``, if not where the zoo saves it next to ``source``
+    :param verbose: 1 prints what was copied
+    """
+
+    def __init__(self, source: str, source_vec_normalize: str | None = None, verbose: int = 0):
+        super().__init__(verbose)
+        self.source = source
+        self.source_vec_normalize = source_vec_normalize
+
+    def _source_stats(self) -> Path | None:
+        """The source's saved ``VecNormalize`` (None: it was trained without ``normalize``)."""
+        if self.source_vec_normalize is not None:
+            if not Path(self.source_vec_normalize).is_file():
+                raise FileNotFoundError(f"source_vec_normalize {self.source_vec_normalize} is no file.")
+            return Path(self.source_vec_normalize)
+        source_path = Path(self.source)
+        stats = source_path.parent / source_path.stem / "vecnormalize.pkl"  # where the zoo saves them
+        return stats if stats.is_file() else None
+
+    def _on_training_start(self) -> None:
+        if not isinstance(self.model, UDPO):
+            raise ValueError(f"{type(self).__name__} needs a UDPO model (it holds a state planner), got {type(self.model)}.")
+        source_stats, target_norm = self._source_stats(), self.model.get_vec_normalize_env()
+        if (source_stats is None) != (target_norm is None):
+            used, unused = ("source", "target") if source_stats is not None else ("target", "source")
+            raise ValueError(
+                f"{type(self).__name__}: the {used} uses VecNormalize (`normalize`) and the {unused} does not, so the "
+                "transferred planner would see states scaled otherwise than it was trained on: train both with "
+                "`normalize` (the source's statistics are then carried over) or both without."
+            )
+        # The policy's weights only: loading the whole source model would need its env (HER's buffer)
+        data, params, _ = load_from_zip_file(Path(self.source), device=self.model.device)
+        mismatch = observation_space_mismatch(data["observation_space"], self.model.observation_space)
+        if mismatch is not None:
+            raise ValueError(f"The source's state planner ({self.source}) cannot read the target's observations: {mismatch}.")
+        state_dict = {
+            name[len(_PLANNER_PREFIX) :]: value for name, value in params["policy"].items() if name.startswith(_PLANNER_PREFIX)
+        }
+        frozen = self.model.policy.freeze_state_planner
+        if source_stats is not None and target_norm is not None:
+            copy_normalization_statistics(load_vec_normalize(source_stats), target_norm, training=not frozen)
+        self.model.policy.load_state_planner(state_dict, source=self.source)
+        if self.verbose > 0:
+            stats = f", VecNormalize statistics from {source_stats}" if source_stats is not None else ""
+            print(f"State planner copied from {self.source} ({'frozen' if frozen else 'trainable'}){stats}")
+
+    def _on_step(self) -> bool:
+        return True

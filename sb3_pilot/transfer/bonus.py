@@ -1,50 +1,22 @@
-"""Transfer stage of PILoT (paper section 3.3): the planner's reward bonus and zero-shot landmark guidance."""
+"""The reward bonus of PILoT's transfer stage (paper section 3.3, eq. "bonus") and the HER buffer it needs."""
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
 
-from sb3_pilot.planner import GoalPlanner, shares_goal_space, task_id
+from sb3_pilot.common.utils import check_number
+from sb3_pilot.distill import GoalPlanner
 
 #: Info key holding the achieved goal before the transition (``phi(s)``), which the bonus needs.
 PREVIOUS_ACHIEVED_GOAL = "previous_achieved_goal"
 #: Similarities of :class:`PilotBonusWrapper`.
 SIMILARITIES = ("goal_cosine", "displacement_cosine")
-
-
-def check_planner_env(env: gym.Env, planner: GoalPlanner) -> None:
-    """
-    Refuse a planner that cannot plan for ``env``: a goal size that differs from the env's goal entries, or a source
-    task whose goal space is not (declared) the env's (see :func:`sb3_pilot.planner.share_goal_space`).
-
-    :param env: a goal env (Dict observation with ``achieved_goal`` and ``desired_goal``)
-    :param planner: the goal planner
-    """
-    obs_space = env.observation_space
-    if not isinstance(obs_space, spaces.Dict) or not {"achieved_goal", "desired_goal"} <= set(obs_space.spaces):
-        raise ValueError(
-            f"A goal planner needs a goal env (Dict observation with 'achieved_goal' and 'desired_goal'), got {obs_space}."
-        )
-    for key in ("achieved_goal", "desired_goal"):
-        if obs_space[key].shape != (planner.goal_dim,):
-            raise ValueError(
-                f"The goal planner plans {planner.goal_dim}-dim goals but the env's '{key}' has shape {obs_space[key].shape}."
-            )
-    target_task = task_id(env)
-    if planner.source_task is None:
-        raise ValueError("The goal planner has no 'source_task' in its metadata: distil it with distill_goal_planner.")
-    if not shares_goal_space(planner.source_task, target_task):
-        raise ValueError(
-            f"The goal planner was distilled on '{planner.source_task}', whose goal space is not that of '{target_task}'. "
-            "If their goals have the same meaning in the same coordinates, declare it with "
-            f"sb3_pilot.planner.share_goal_space({planner.source_task!r}, {target_task!r})."
-        )
 
 
 def cosine_similarity(first: np.ndarray, second: np.ndarray, eps: float = 1e-8) -> np.ndarray:
@@ -85,20 +57,27 @@ class PilotBonusWrapper(gym.RewardWrapper):
     ``info["previous_achieved_goal"]``, which every step's info holds and which :class:`PilotHerReplayBuffer` passes
     from the stored observations; SB3's ``HerReplayBuffer`` does not, and then ``compute_reward`` raises an error.
 
+    In an RL-Zoo YAML: ``env_wrapper: [{sb3_pilot.PilotBonusWrapper: {planner: path/to/planner.pt, beta: 1.0}}]``.
+
     :param env: a goal env (Dict observation with ``achieved_goal`` and ``desired_goal``)
-    :param planner: the distilled goal planner (its goal size and source task are checked against ``env``)
+    :param planner: the distilled goal planner, or the path of its file (:meth:`GoalPlanner.save`); its goal size and
+        source task are checked against ``env``
     :param beta: bonus ratio ``beta``
     :param similarity: ``"displacement_cosine"`` or ``"goal_cosine"``
     """
 
-    def __init__(self, env: gym.Env, planner: GoalPlanner, beta: float = 1.0, similarity: str = "displacement_cosine"):
-        super().__init__(env)
-        check_planner_env(env, planner)
-        if beta < 0:
-            raise ValueError(f"beta must be >= 0, got {beta}.")
+    def __init__(
+        self,
+        env: gym.Env,
+        planner: GoalPlanner | str | os.PathLike,
+        beta: float = 1.0,
+        similarity: str = "displacement_cosine",
+    ):
+        check_number("beta", beta, minimum=0)
         if similarity not in SIMILARITIES:
             raise ValueError(f"Unknown similarity {similarity!r}, choose one of {SIMILARITIES}.")
-        self.planner = planner
+        super().__init__(env)
+        self.planner = GoalPlanner.for_env(planner, env)
         self.beta = beta
         self.similarity = similarity
         self._achieved_goal: np.ndarray | None = None
@@ -184,73 +163,3 @@ class PilotHerReplayBuffer(HerReplayBuffer):
             raise ValueError("PilotHerReplayBuffer passes the previous achieved goal itself: do not set copy_info_dict.")
         super().__init__(*args, copy_info_dict=True, **kwargs)
         self.infos = _StoredPreviousAchievedGoals(self.observations["achieved_goal"])  # type: ignore[assignment]
-
-
-class LandmarkGuidance(gym.Wrapper):
-    """
-    Zero-shot guidance (paper section 3.3): a pre-trained goal-conditioned controller (any SB3 model) sees the
-    planner's immediate landmark as its ``desired_goal``, while the env still judges reward and success against the
-    real goal (the wrapper passes them through untouched).
-
-    The landmark is ``k = horizon`` chained planner steps ahead of the achieved goal; the real goal is shown instead
-    once it is within reach: closer than ``switch_distance``, or (``switch_distance=None``) closer than the landmark.
-    ``info["landmark"]`` and ``info["real_desired_goal"]`` are added at each step, and the episode's landmarks and
-    achieved goals are kept in :attr:`episode_landmarks` and :attr:`episode_achieved_goals`, for drawing.
-
-    :param env: a goal env (Dict observation with ``achieved_goal`` and ``desired_goal``)
-    :param planner: the distilled goal planner (its goal size and source task are checked against ``env``)
-    :param horizon: number ``k`` of chained planner steps to the landmark
-    :param switch_distance: distance to the real goal under which it replaces the landmark (None: the landmark's
-        distance; 0: never)
-    """
-
-    def __init__(self, env: gym.Env, planner: GoalPlanner, horizon: int = 1, switch_distance: float | None = None):
-        super().__init__(env)
-        check_planner_env(env, planner)
-        if horizon < 1:
-            raise ValueError(f"horizon must be >= 1, got {horizon}.")
-        if switch_distance is not None and switch_distance < 0:
-            raise ValueError(f"switch_distance must be >= 0 or None, got {switch_distance}.")
-        self.planner = planner
-        self.horizon = horizon
-        self.switch_distance = switch_distance
-        self.real_desired_goal: np.ndarray | None = None
-        self._landmarks: list[np.ndarray] = []
-        self._achieved_goals: list[np.ndarray] = []
-
-    @property
-    def episode_landmarks(self) -> np.ndarray:
-        """Goals shown to the controller since the last reset, shape (steps + 1, goal_dim)."""
-        return np.array(self._landmarks)
-
-    @property
-    def episode_achieved_goals(self) -> np.ndarray:
-        """Achieved goals since the last reset, shape (steps + 1, goal_dim)."""
-        return np.array(self._achieved_goals)
-
-    def landmark(self, achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
-        """The goal to show the controller at ``achieved_goal`` for the real goal ``desired_goal``."""
-        landmark = self.planner.plan(achieved_goal, desired_goal, horizon=self.horizon)[-1]
-        distance = np.linalg.norm(desired_goal - achieved_goal)
-        reach = np.linalg.norm(landmark - achieved_goal) if self.switch_distance is None else self.switch_distance
-        return np.array(desired_goal) if distance <= reach else landmark
-
-    def _guide(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        self.real_desired_goal = np.array(observation["desired_goal"])
-        landmark = self.landmark(observation["achieved_goal"], self.real_desired_goal).astype(
-            observation["desired_goal"].dtype
-        )
-        self._landmarks.append(landmark)
-        self._achieved_goals.append(np.array(observation["achieved_goal"]))
-        return {**observation, "desired_goal": landmark}
-
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
-        observation, info = self.env.reset(seed=seed, options=options)
-        self._landmarks, self._achieved_goals = [], []
-        return self._guide(observation), info
-
-    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
-        observation, reward, terminated, truncated, info = self.env.step(action)
-        guided = self._guide(observation)
-        info["landmark"], info["real_desired_goal"] = guided["desired_goal"], self.real_desired_goal
-        return guided, reward, terminated, truncated, info

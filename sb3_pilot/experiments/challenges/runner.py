@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 import torch as th
 
-from sb3_pilot.challenges.definitions import BUDGETS, CHALLENGES, Challenge
-from sb3_pilot.challenges.stages import Budget, StageContext, run_stage
+from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, Challenge
+from sb3_pilot.experiments.challenges.stages import Budget, StageContext, run_stage
 
 #: Success rates whose first crossing the summary reports (``steps_to_50``, ``steps_to_90``).
 THRESHOLDS = (0.5, 0.9)

@@ -1,7 +1,7 @@
 """
 The stages of a transfer challenge and the one runner that chains them.
 
-A challenge is a list of stages run once per seed: :class:`ZooTrain` (a ``python -m sb3_pilot.zoo train`` run),
+A challenge is a list of stages run once per seed: :class:`ZooTrain` (a ``python -m sb3_pilot.experiments.zoo train`` run),
 :class:`Distill` (:func:`~sb3_pilot.distill_goal_planner` on a trained UDPO) and :class:`Guidance` (a pre-trained
 controller guided by a goal planner, :class:`~sb3_pilot.LandmarkGuidance`, with no training). Each stage writes
 into its own folder ``<root>/<challenge>/models/seed_<k>/<stage>/`` (``models/`` is gitignored) and, when it has
@@ -30,11 +30,10 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-from sb3_pilot.distill import distill_goal_planner
-from sb3_pilot.planner import GoalPlanner
+from sb3_pilot.distill import GoalPlanner, distill_goal_planner
+from sb3_pilot.experiments.zoo import hyperparams_dir
+from sb3_pilot.transfer import LandmarkGuidance
 from sb3_pilot.udpo import UDPO
-from sb3_pilot.wrappers import LandmarkGuidance
-from sb3_pilot.zoo import hyperparams_dir
 
 #: Marker a finished stage leaves in its folder.
 STAGE_MARKER = "stage.json"
@@ -146,7 +145,7 @@ def _env_id(model_path: Path) -> str:
 @dataclass(frozen=True)
 class ZooTrain:
     """
-    A training run of the zoo: ``python -m sb3_pilot.zoo train --algo ALGO --env ENV --conf-file BUDGET/CONF ...``.
+    A training run of the zoo: ``python -m sb3_pilot.experiments.zoo train --algo ALGO --env ENV --conf-file BUDGET/CONF ...``.
 
     :param name: stage name (folder name, key of its output)
     :param algo: zoo algorithm (``udpo``, ``sac``)
@@ -175,18 +174,23 @@ class ZooTrain:
         return run_dir / f"{self.env_id.replace('/', '-')}.zip"
 
     def zoo_args(self, ctx: StageContext, stage_dir: Path) -> list[str]:
-        """Arguments of ``python -m sb3_pilot.zoo`` for this stage (but verbosity and progress bar)."""
+        """Arguments of ``python -m sb3_pilot.experiments.zoo`` for this stage (but verbosity and progress bar)."""
         conf_file = ctx.budget.conf_dir + self.conf_file
         entry = yaml.safe_load((hyperparams_dir() / conf_file).read_text())[self.env_id]
         steps = ctx.steps.get(self.name) or int(entry["n_timesteps"])
-        hyperparams: dict[str, Any] = {
+        layers = [
             # a buffer larger than the run is never filled: allocate (and save) only what is used
-            "buffer_size": min(int(entry["buffer_size"]), max(steps, 1000)),
-            **ctx.fast_hyperparams.get("*", {}),
-            **ctx.fast_hyperparams.get(self.algo, {}),
-            **ctx.budget.hyperparams,
-            **(self.params(ctx.outputs) if self.params else {}),
-        }
+            {"buffer_size": min(int(entry["buffer_size"]), max(steps, 1000))},
+            ctx.fast_hyperparams.get("*", {}),
+            ctx.fast_hyperparams.get(self.algo, {}),
+            ctx.budget.hyperparams,
+            self.params(ctx.outputs) if self.params else {},
+        ]
+        hyperparams: dict[str, Any] = {key: value for layer in layers for key, value in layer.items()}
+        # policy_kwargs merge key by key (a budget's net_arch and a stage's freeze_state_planner both hold)
+        policy_kwargs = {key: value for layer in layers for key, value in layer.get("policy_kwargs", {}).items()}
+        if policy_kwargs:
+            hyperparams["policy_kwargs"] = policy_kwargs
         # HER cannot sample before an episode has ended: SB3's default (100) is too early with 4 x 500-step envs
         first_episodes = entry.get("n_envs", 1) * (gym.spec(self.env_id).max_episode_steps or 1)
         if first_episodes > hyperparams.get("learning_starts", entry.get("learning_starts", 100)):
@@ -207,11 +211,11 @@ class ZooTrain:
 
     def describe(self, ctx: StageContext, stage_dir: Path) -> str:
         """One line for the progress display."""
-        return f"{self.algo} on {self.env_id}: python -m sb3_pilot.zoo {shlex.join(self.zoo_args(ctx, stage_dir))}"
+        return f"{self.algo} on {self.env_id}: python -m sb3_pilot.experiments.zoo {shlex.join(self.zoo_args(ctx, stage_dir))}"
 
     def run(self, ctx: StageContext, stage_dir: Path) -> None:
         """Train through the zoo (in this process)."""
-        from sb3_pilot import zoo
+        from sb3_pilot.experiments import zoo
 
         zoo.main([*self.zoo_args(ctx, stage_dir), "--verbose", str(ctx.verbose), *(["--progress"] if ctx.progress else [])])
 
@@ -347,6 +351,20 @@ def config_hash(config: dict[str, Any], needs_hashes: list[str]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+#: Stands for the challenge's output folder in stored configurations, so that a moved or copied folder still resumes.
+RUN_DIR = "<run>"
+
+
+def portable(config: dict[str, Any], run_dir: Path) -> dict[str, Any]:
+    """
+    A stage configuration with the challenge's folder written :data:`RUN_DIR`: what is hashed and stored.
+
+    :param config: the configuration (JSON-serialisable but for paths)
+    :param run_dir: ``<root>/<challenge>``
+    """
+    return json.loads(json.dumps(config, default=str).replace(str(run_dir), RUN_DIR))
+
+
 def run_stage(stage: Stage, ctx: StageContext, hashes: dict[str, str], label: str) -> dict[str, Any]:
     """
     Run one stage unless its marker says it already ran with this configuration.
@@ -358,7 +376,7 @@ def run_stage(stage: Stage, ctx: StageContext, hashes: dict[str, str], label: st
     :return: the stage's marker (``config_hash``, ``config``, ``wall_time_s``, ``skipped``)
     """
     stage_dir = ctx.seed_dir / stage.name
-    config = stage.config(ctx, stage_dir)
+    config = portable(stage.config(ctx, stage_dir), ctx.seed_dir.parent.parent)
     digest = config_hash(config, [hashes[name] for name in stage.needs])
     hashes[stage.name] = digest
     marker_path = stage_dir / STAGE_MARKER

@@ -1,7 +1,7 @@
 """
-Pictures of a challenge run: ``python -m sb3_pilot.plots zoo_runs/<challenge> [more folders]``.
+Pictures of a challenge run: ``python -m sb3_pilot.experiments.plots zoo_runs/<challenge> [more folders]``.
 
-Reads ``summary.json`` (written by ``python -m sb3_pilot.challenges``) and writes, next to it:
+Reads ``summary.json`` (written by ``python -m sb3_pilot.experiments.challenges``) and writes, next to it:
 
 - ``success.png``: success rate vs env steps on the target task, mean and min-max spread over seeds, per method
   (a zero-shot method, evaluated after 0 target steps, is a horizontal line);
@@ -30,9 +30,9 @@ from matplotlib import pyplot as plt
 from matplotlib.axes import Axes
 from matplotlib.patches import Circle, Rectangle
 
+from sb3_pilot.distill import GoalPlanner
 from sb3_pilot.envs import UMAZE_MAP, UMAZE_SCALING, register_envs, umaze_cell_to_xy
 from sb3_pilot.envs.maze import MAZE_DISTANCE_THRESHOLD
-from sb3_pilot.planner import GoalPlanner
 
 MAZE_SOURCE = "Pilot/Maze2D-v0"
 
@@ -240,8 +240,8 @@ def plot_challenge(run_dir: str | Path) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m sb3_pilot.plots RUN_DIR [RUN_DIR ...]``."""
-    parser = argparse.ArgumentParser(prog="python -m sb3_pilot.plots", description=__doc__.split("\n\n")[0])
+    """``python -m sb3_pilot.experiments.plots RUN_DIR [RUN_DIR ...]``."""
+    parser = argparse.ArgumentParser(prog="python -m sb3_pilot.experiments.plots", description=__doc__.split("\n\n")[0])
     parser.add_argument("run_dirs", nargs="+", help="challenge folders holding a summary.json (zoo_runs/<challenge>)")
     for run_dir in parser.parse_args(argv).run_dirs:
         plot_challenge(run_dir)

@@ -1,18 +1,18 @@
-"""``python -m sb3_pilot.challenges CHALLENGE --budget smoke|cpu|paper --seeds N [--root zoo_runs] [--plot]``."""
+"""``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N [--root zoo_runs] [--plot]``."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
-from sb3_pilot.challenges.definitions import BUDGETS, CHALLENGES
-from sb3_pilot.challenges.runner import run_challenge
+from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES
+from sb3_pilot.experiments.challenges.runner import run_challenge
 
 
 def main(argv: list[str] | None = None) -> None:
     """Parse the command line and run the challenge(s)."""
     parser = argparse.ArgumentParser(
-        prog="python -m sb3_pilot.challenges",
+        prog="python -m sb3_pilot.experiments.challenges",
         description="Run (or resume) PILoT's transfer challenges through the RL Zoo.",
         epilog="\n".join(f"{name}: {challenge.description}" for name, challenge in CHALLENGES.items()),
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -21,7 +21,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--budget", choices=list(BUDGETS), default="smoke")
     parser.add_argument("--seeds", type=int, default=1, help="number of seeds (0 .. N-1)")
     parser.add_argument("--root", default="zoo_runs", help="output root: writes ROOT/CHALLENGE/")
-    parser.add_argument("--plot", action="store_true", help="render the PNGs afterwards (python -m sb3_pilot.plots)")
+    parser.add_argument("--plot", action="store_true", help="render the PNGs afterwards (sb3_pilot.experiments.plots)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     parser.add_argument("-v", "--verbose", type=int, default=0, help="1: the zoo's and SB3's logs")
     args = parser.parse_args(argv)
@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> None:
             verbose=args.verbose,
         )
         if args.plot:
-            from sb3_pilot.plots import plot_challenge
+            from sb3_pilot.experiments.plots import plot_challenge
 
             plot_challenge(f"{args.root}/{name}")
 

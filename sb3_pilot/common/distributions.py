@@ -1,0 +1,63 @@
+"""Diagonal Gaussian log-likelihoods of the state planner, the inverse dynamics and the goal planner."""
+
+import math
+
+import torch as th
+from torch.nn import functional as F
+
+# Same bounds as SB3's SAC actor
+LOG_STD_MAX = 2
+LOG_STD_MIN = -20
+_HALF_LOG_2PI = 0.5 * math.log(2 * math.pi)
+
+
+def gaussian_log_prob(value: th.Tensor, mean: th.Tensor, log_std: th.Tensor) -> th.Tensor:
+    """
+    Log-density of a diagonal Gaussian, summed over the last dimension.
+
+    :param value: points, shape (..., dim)
+    :param mean: means, same shape
+    :param log_std: log standard deviations, same shape
+    :return: log-densities, shape (...)
+    """
+    return (-0.5 * ((value - mean) * th.exp(-log_std)) ** 2 - log_std - _HALF_LOG_2PI).sum(dim=-1)
+
+
+def gaussian_expected_nll(mean: th.Tensor, std: th.Tensor, model_mean: th.Tensor, model_log_std: th.Tensor) -> th.Tensor:
+    """
+    Expected negative log-likelihood ``E_{x ~ N(mean, std)} [-log N(x | model_mean, exp(model_log_std))]`` in closed
+    form (a cross-entropy of diagonal Gaussians), summed over the last dimension.
+
+    :param mean: mean of the data distribution, shape (..., dim)
+    :param std: its standard deviation, same shape
+    :param model_mean: mean of the model, same shape
+    :param model_log_std: log standard deviation of the model, same shape
+    :return: expected NLL, shape (...)
+    """
+    return -gaussian_log_prob(mean, model_mean, model_log_std) + 0.5 * ((std * th.exp(-model_log_std)) ** 2).sum(dim=-1)
+
+
+def squashed_gaussian_log_prob(gaussian: th.Tensor, mean: th.Tensor, log_std: th.Tensor) -> th.Tensor:
+    """
+    Log-probability of ``tanh(gaussian)`` for ``gaussian ~ N(mean, exp(log_std))``, summed over the last dimension.
+
+    :param gaussian: pre-squash values, shape (..., dim)
+    :param mean: mean of the pre-squash Gaussian, same shape
+    :param log_std: its log standard deviation, same shape
+    :return: log-probabilities, shape (...)
+    """
+    tanh_log_det = 2 * (math.log(2) - gaussian - F.softplus(-2 * gaussian))  # log(1 - tanh(u)^2), stable
+    return gaussian_log_prob(gaussian, mean, log_std) - tanh_log_det.sum(dim=-1)
+
+
+def squashed_gaussian_sample(mean: th.Tensor, log_std: th.Tensor, deterministic: bool = False) -> tuple[th.Tensor, th.Tensor]:
+    """
+    Reparameterised sample of ``tanh(u)``, ``u ~ N(mean, exp(log_std))``, and its log-probability.
+
+    :param mean: mean of the pre-squash Gaussian
+    :param log_std: log standard deviation of the pre-squash Gaussian
+    :param deterministic: return ``tanh(mean)`` instead of a sample
+    :return: the squashed sample and its log-probability (shape ``(batch,)``)
+    """
+    gaussian = mean if deterministic else mean + th.randn_like(mean) * th.exp(log_std)
+    return th.tanh(gaussian), squashed_gaussian_log_prob(gaussian, mean, log_std)

@@ -1,0 +1,61 @@
+"""Small helpers shared by the stages: freezing parameters, naming a task, checking numeric arguments."""
+
+import math
+import numbers
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+
+import gymnasium as gym
+from stable_baselines3.common.vec_env import VecEnv
+from torch import nn
+
+
+@contextmanager
+def frozen(parameters: Iterable[nn.Parameter]) -> Iterator[None]:
+    """
+    Build graphs through these parameters without computing their gradients (they stay untouched).
+
+    :param parameters: the parameters to hold fixed inside the ``with`` block
+    """
+    parameters = list(parameters)
+    for param in parameters:
+        param.requires_grad_(False)
+    try:
+        yield
+    finally:
+        for param in parameters:
+            param.requires_grad_(True)
+
+
+def task_id(env: gym.Env | VecEnv) -> str:
+    """
+    Name of the task an env (or the first env of a ``VecEnv``) runs: its Gymnasium ID, or the class name of the
+    unwrapped env when it was not made with ``gym.make``.
+
+    :param env: a Gymnasium env or an SB3 ``VecEnv``
+    """
+    if isinstance(env, VecEnv):
+        spec = env.get_attr("spec", indices=[0])[0]
+        return spec.id if spec is not None else type(env.get_attr("unwrapped", indices=[0])[0]).__name__
+    return env.spec.id if env.spec is not None else type(env.unwrapped).__name__
+
+
+def check_number(
+    name: str, value: float, minimum: float | None = None, strict: bool = False, integer: bool = False
+) -> None:
+    """
+    Refuse a numeric argument that is not a finite number (an integer if ``integer``), or lies below ``minimum``, with
+    a ``ValueError`` naming it.
+
+    :param name: the argument's name, for the message
+    :param value: its value
+    :param minimum: the smallest value allowed (None: any finite number)
+    :param strict: whether ``minimum`` itself is refused
+    :param integer: whether the value must be an integer
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number, got {value!r}.")
+    if integer and not isinstance(value, numbers.Integral):
+        raise ValueError(f"{name} must be an integer, got {value!r}.")
+    if minimum is not None and (value <= minimum if strict else value < minimum):
+        raise ValueError(f"{name} must be {'>' if strict else '>='} {minimum}, got {value!r}.")

@@ -1,0 +1,314 @@
+"""Distillation stage of PILoT (paper section 3.2, eq. "distill"): from UDPO's state planner to a goal planner."""
+
+from __future__ import annotations
+
+import sys
+from typing import NamedTuple
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.buffers import DictReplayBuffer
+from stable_baselines3.common.logger import HumanOutputFormat, Logger
+from stable_baselines3.common.vec_env import VecNormalize
+from tqdm.auto import tqdm
+
+from sb3_pilot.common.distributions import gaussian_expected_nll
+from sb3_pilot.common.utils import check_number, task_id
+from sb3_pilot.distill.goal_planner import GoalPlanner
+from sb3_pilot.udpo import UDPO
+
+
+def goal_scaling(vec_normalize: VecNormalize | None, goal_dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Scale and offset mapping goals as the policy sees them back to raw goals: ``raw = scale * seen + offset``.
+
+    :param vec_normalize: the ``VecNormalize`` wrapper the policy was trained with, if any
+    :param goal_dim: size of the goal vectors
+    :return: ``(scale, offset)``, the identity when ``achieved_goal`` is not normalised
+    """
+    if vec_normalize is not None and vec_normalize.norm_obs and "achieved_goal" in (vec_normalize.norm_obs_keys or []):
+        stats = vec_normalize.obs_rms["achieved_goal"]  # type: ignore[index]
+        return np.sqrt(stats.var + vec_normalize.epsilon).astype(np.float32), stats.mean.astype(np.float32)
+    return np.ones(goal_dim, dtype=np.float32), np.zeros(goal_dim, dtype=np.float32)
+
+
+def teacher_goal_distribution(
+    model: UDPO, observations: dict[str, np.ndarray], chunk_size: int = 4096
+) -> tuple[np.ndarray, np.ndarray]:
+    """
+    The goal slice ``phi(s')`` of the teacher's planned next state ``s' ~ h(. | s, g_target)``, in raw coordinates.
+
+    :param model: the teacher (a trained ``UDPO`` on a Dict goal env)
+    :param observations: raw observations (as the replay buffer stores them), batched
+    :param chunk_size: forward pass size
+    :return: mean and standard deviation of the teacher's (Gaussian) next goal, shape (n, goal_dim) each
+    """
+    policy = model.policy
+    goal_slice = policy.goal_slice
+    assert goal_slice is not None
+    vec_normalize = model.get_vec_normalize_env()
+    scale, offset = goal_scaling(vec_normalize, goal_slice.stop - goal_slice.start)
+    seen = vec_normalize.normalize_obs(observations) if vec_normalize is not None else observations
+    policy.set_training_mode(False)
+    means, stds = [], []
+    n_obs = len(observations["achieved_goal"])
+    with th.no_grad():
+        for start in range(0, n_obs, chunk_size):
+            chunk = {key: value[start : start + chunk_size] for key, value in seen.items()}  # type: ignore[union-attr]
+            obs_tensor, _ = policy.obs_to_tensor(chunk)
+            distribution = policy.state_planner.distribution(obs_tensor)
+            means.append(distribution.mean[:, goal_slice].cpu().numpy())
+            stds.append(th.exp(distribution.delta_log_std)[:, goal_slice].cpu().numpy())
+    return np.concatenate(means) * scale + offset, np.concatenate(stds) * scale
+
+
+def _check_teacher(model: UDPO) -> DictReplayBuffer:
+    if not isinstance(model.observation_space, spaces.Dict) or model.policy.goal_slice is None:
+        raise ValueError(
+            "distill_goal_planner needs a UDPO trained on a goal env (Dict observation with 'achieved_goal' and "
+            f"'desired_goal'), got observation space {model.observation_space}."
+        )
+    if "desired_goal" not in model.observation_space.spaces:
+        raise ValueError("distill_goal_planner needs 'desired_goal' in the observation: it is the target goal g_target.")
+    buffer = model.replay_buffer
+    if not isinstance(buffer, DictReplayBuffer) or (buffer.pos == 0 and not buffer.full):
+        raise ValueError(
+            "distill_goal_planner samples states and target goals from the model's replay buffer, which is empty "
+            "(a loaded model has none: train it, or call model.load_replay_buffer(path) first)."
+        )
+    return buffer
+
+
+class DistillationData(NamedTuple):
+    """
+    Pairs ``(g, g_target)`` and the teacher's Gaussian over the next goal ``phi(s')``, ``s' ~ h(. | s, g_target)``, in raw
+    goal coordinates (tensors of shape (n, goal_dim)).
+
+    :param achieved_goal: ``g = phi(s)``
+    :param desired_goal: ``g_target``
+    :param teacher_mean: mean of the teacher's next goal
+    :param teacher_std: its standard deviation
+    """
+
+    achieved_goal: th.Tensor
+    desired_goal: th.Tensor
+    teacher_mean: th.Tensor
+    teacher_std: th.Tensor
+
+    def rows(self, index: slice | th.Tensor) -> DistillationData:
+        """The pairs at ``index`` (a slice or an index tensor)."""
+        return DistillationData(*(field[index] for field in self))
+
+
+class HoldoutReport(NamedTuple):
+    """
+    The student measured against the teacher on held-out pairs.
+
+    :param nll: student's negative log-likelihood of labels sampled from the teacher
+    :param landmark_distance: mean distance between the student's and the teacher's mean next goals
+    """
+
+    nll: float
+    landmark_distance: float
+
+
+def sample_buffer_pairs(buffer: DictReplayBuffer, n_samples: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """
+    Observations of states ``s ~ B`` with target goals ``g_target ~ p_g`` drawn independently from the desired goals
+    stored in the buffer (eq. "distill"), raw as the buffer stores them.
+
+    :param buffer: the teacher's replay buffer
+    :param n_samples: number of pairs
+    :param rng: random generator
+    :return: batched observations whose ``desired_goal`` is the drawn target goal
+    """
+    n_stored = (buffer.buffer_size if buffer.full else buffer.pos) * buffer.n_envs
+    stored = {key: value[: n_stored // buffer.n_envs].reshape(n_stored, -1) for key, value in buffer.observations.items()}
+    state_idx, goal_idx = rng.integers(n_stored, size=n_samples), rng.integers(n_stored, size=n_samples)
+    observations = {key: value[state_idx] for key, value in stored.items()}
+    observations["desired_goal"] = stored["desired_goal"][goal_idx]
+    return observations
+
+
+def distillation_data(model: UDPO, n_samples: int, seed: int) -> DistillationData:
+    """
+    Draw ``n_samples`` pairs from the teacher's buffer and label them with the teacher's next-goal distribution.
+
+    :param model: the teacher
+    :param n_samples: number of pairs
+    :param seed: seed of the draw
+    """
+    observations = sample_buffer_pairs(_check_teacher(model), n_samples, np.random.default_rng(seed))
+    teacher_mean, teacher_std = teacher_goal_distribution(model, observations)
+    arrays = (observations["achieved_goal"], observations["desired_goal"], teacher_mean, teacher_std)
+    return DistillationData(*(th.as_tensor(array, device=model.device, dtype=th.float32) for array in arrays))
+
+
+def distillation_loss(planner: GoalPlanner, batch: DistillationData) -> th.Tensor:
+    """
+    The student's expected negative log-likelihood of the teacher's next goals (eq. "distill"),
+    ``E_{g' ~ N(teacher_mean, teacher_std)} [-log f(g' | g, g_target)]``, in closed form: the optimum of sampling
+    labels, without the sampling noise.
+
+    :param planner: the student
+    :param batch: the pairs and their teacher distributions
+    """
+    delta_mean, log_std = planner.distribution_params(batch.achieved_goal, batch.desired_goal)
+    return gaussian_expected_nll(batch.teacher_mean - batch.achieved_goal, batch.teacher_std, delta_mean, log_std).mean()
+
+
+def holdout_report(planner: GoalPlanner, holdout: DistillationData, labels: th.Tensor) -> HoldoutReport:
+    """
+    :param planner: the student
+    :param holdout: held-out pairs
+    :param labels: next goals sampled from the teacher at those pairs
+    """
+    with th.no_grad():
+        nll = planner.nll(labels, holdout.achieved_goal, holdout.desired_goal).mean().item()
+        student = planner(holdout.achieved_goal, holdout.desired_goal)
+        distance = th.linalg.norm(student - holdout.teacher_mean, dim=1).mean().item()
+    return HoldoutReport(nll, distance)
+
+
+def fit_goal_planner(
+    planner: GoalPlanner,
+    data: DistillationData,
+    gradient_steps: int,
+    batch_size: int,
+    learning_rate: float,
+    generator: th.Generator,
+    logger: Logger,
+    log_interval: int,
+    progress_bar: bool = False,
+) -> None:
+    """
+    Minimise :func:`distillation_loss` with Adam on minibatches of ``data``.
+
+    :param planner: the student (trained in place)
+    :param data: training pairs
+    :param gradient_steps: number of gradient steps
+    :param batch_size: minibatch size
+    :param learning_rate: Adam learning rate
+    :param generator: random generator of the minibatches
+    :param logger: where ``distill/loss`` goes every ``log_interval`` steps
+    :param log_interval: gradient steps between two logger dumps
+    :param progress_bar: show a progress bar
+    """
+    optimizer = th.optim.Adam(planner.parameters(), lr=learning_rate)
+    planner.train()
+    n_train, losses = len(data.achieved_goal), []
+    for step in tqdm(range(1, gradient_steps + 1), disable=not progress_bar, desc="distilling goal planner"):
+        batch = data.rows(th.randint(n_train, (batch_size,), generator=generator, device=data.achieved_goal.device))
+        loss = distillation_loss(planner, batch)
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+        losses.append(loss.detach())
+        if step % log_interval == 0 or step == gradient_steps:
+            logger.record("distill/loss", th.stack(losses).mean().item())
+            logger.record("distill/gradient_steps", step)
+            logger.dump(step)
+            losses = []
+    planner.eval()
+
+
+def distill_goal_planner(
+    model: UDPO,
+    n_samples: int = 50_000,
+    gradient_steps: int = 5_000,
+    batch_size: int = 256,
+    learning_rate: float = 1e-3,
+    net_arch: list[int] | None = None,
+    holdout_fraction: float = 0.1,
+    source_task: str | None = None,
+    seed: int = 0,
+    progress_bar: bool = False,
+    logger: Logger | None = None,
+    log_interval: int = 1000,
+    verbose: int = 0,
+) -> GoalPlanner:
+    """
+    Distil a trained UDPO's state planner ``h(s' | s, g_target)`` (the teacher) into a goal planner
+    ``f(g' | g, g_target)`` (the student) by maximum likelihood, paper eq. "distill".
+
+    Data (:func:`distillation_data`): states ``s ~ B`` are drawn from the model's replay buffer and target goals
+    ``g_target ~ p_g`` independently from the desired goals stored in it, as the equation writes. The buffer is the
+    only data the teacher is accurate on (it was trained on it), it costs no env step, and it works for a model loaded
+    with its buffer. The label is ``phi(s')``, the achieved-goal slice of the teacher's planned next state, mapped back
+    to raw coordinates with the model's ``VecNormalize`` statistics (the buffer stores raw observations, the teacher
+    sees normalised ones). The loss (:func:`distillation_loss`) is the student's expected NLL of the teacher's
+    Gaussian, in closed form.
+
+    A held-out share of the pairs measures the student against the teacher before and after training, stored in
+    ``planner.metadata["holdout"]``: ``nll`` and ``landmark_distance`` (see :class:`HoldoutReport`), with
+    ``*_untrained`` values for the initial student, and ``teacher_step`` (mean distance from ``g`` to the teacher's
+    mean, for scale).
+
+    :param model: the trained UDPO teacher (on a Dict goal env, with its replay buffer)
+    :param n_samples: number of (state, target goal) pairs drawn from the buffer, held-out ones included
+    :param gradient_steps: number of gradient steps
+    :param batch_size: minibatch size
+    :param learning_rate: Adam learning rate
+    :param net_arch: hidden layers of the goal planner (default ``[256, 256]``)
+    :param holdout_fraction: share of the samples held out for the report
+    :param source_task: the task the teacher was trained on (default: read from ``model.get_env()``)
+    :param seed: seed of the sampling, the initialisation and the minibatches (same seed, same planner)
+    :param progress_bar: show a progress bar
+    :param logger: SB3 logger for ``distill/*`` values (default: stdout if ``verbose >= 1``, else none)
+    :param log_interval: gradient steps between two logger dumps
+    :param verbose: verbosity level: 0 no output, 1 losses and report
+    :return: the distilled goal planner (on the model's device)
+    """
+    _check_teacher(model)
+    check_number("holdout_fraction", holdout_fraction, minimum=0, strict=True)
+    check_number("learning_rate", learning_rate, minimum=0, strict=True)
+    for name, value in (("n_samples", n_samples), ("gradient_steps", gradient_steps), ("batch_size", batch_size)):
+        check_number(name, value, minimum=1, integer=True)
+    if holdout_fraction >= 1:
+        raise ValueError(f"holdout_fraction must be in (0, 1), got {holdout_fraction}.")
+    n_holdout = round(holdout_fraction * n_samples)
+    if n_holdout < 1 or n_samples - n_holdout < batch_size:
+        raise ValueError(
+            f"n_samples={n_samples} leaves {n_holdout} held-out and {n_samples - n_holdout} training samples: "
+            f"need >= 1 and >= batch_size={batch_size}."
+        )
+    if source_task is None:
+        if model.get_env() is None:
+            raise ValueError("The model has no env to read the source task from: pass source_task=<its Gymnasium ID>.")
+        source_task = task_id(model.get_env())
+    if logger is None:
+        logger = Logger(None, [HumanOutputFormat(sys.stdout)] if verbose >= 1 else [])
+
+    data = distillation_data(model, n_samples, seed)
+    holdout, train = data.rows(slice(n_holdout)), data.rows(slice(n_holdout, None))
+    generator = th.Generator(device=model.device).manual_seed(seed)
+    holdout_labels = holdout.teacher_mean + holdout.teacher_std * th.randn(
+        holdout.teacher_mean.shape, generator=generator, device=model.device
+    )
+    with th.random.fork_rng(devices=[]):
+        th.manual_seed(seed)
+        metadata = {
+            "source_task": source_task,
+            "n_samples": len(train.achieved_goal),
+            "gradient_steps": gradient_steps,
+            "seed": seed,
+            "teacher_num_timesteps": model.num_timesteps,
+        }
+        planner = GoalPlanner(data.achieved_goal.shape[1], net_arch, metadata=metadata).to(model.device)
+    planner.set_scales(th.cat([train.achieved_goal, train.desired_goal]), train.teacher_mean - train.achieved_goal)
+
+    untrained = holdout_report(planner, holdout, holdout_labels)
+    fit_goal_planner(planner, train, gradient_steps, batch_size, learning_rate, generator, logger, log_interval, progress_bar)
+    trained = holdout_report(planner, holdout, holdout_labels)
+
+    report = {
+        **{f"{key}_untrained": value for key, value in untrained._asdict().items()},
+        "teacher_step": th.linalg.norm(holdout.teacher_mean - holdout.achieved_goal, dim=1).mean().item(),
+        **trained._asdict(),
+    }
+    planner.metadata["holdout"] = report
+    for key, value in report.items():
+        logger.record(f"distill/holdout_{key}", value)
+    logger.dump(gradient_steps)
+    return planner

@@ -1,0 +1,23 @@
+"""
+The paper's four transfer challenges as runners over the RL Zoo: ``python -m sb3_pilot.experiments.challenges NAME``.
+
+Each challenge chains zoo training runs (``python -m sb3_pilot.experiments.zoo train``), distillation and guidance stages for
+every seed, resumes what already finished, and writes ``<root>/<challenge>/summary.json``.
+"""
+
+from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, Challenge
+from sb3_pilot.experiments.challenges.runner import format_table, run_challenge, steps_to
+from sb3_pilot.experiments.challenges.stages import Budget, Distill, Guidance, ZooTrain
+
+__all__ = [
+    "BUDGETS",
+    "CHALLENGES",
+    "Budget",
+    "Challenge",
+    "Distill",
+    "Guidance",
+    "ZooTrain",
+    "format_table",
+    "run_challenge",
+    "steps_to",
+]

@@ -1,0 +1,142 @@
+"""
+RL-Zoo entry point: ``python -m sb3_pilot.experiments.zoo train|enjoy|plot_train|plot_from_file|all_plots [zoo flags]``.
+
+:func:`register` adds UDPO to the zoo as ``udpo`` (``rl_zoo3.ALGOS``, plus a hyperparameter sampler for
+``--optimize``) and registers the ``Pilot/`` tasks; :func:`main` then runs the zoo's own command, as the RL-Zoo
+docs do for SBX, so every zoo flag works. Three conveniences on top of ``python -m rl_zoo3.cli``:
+
+- ``train`` without ``--conf-file`` reads this package's ``hyperparams/<algo>.yml`` for ``udpo`` and for any
+  ``Pilot/`` task (the zoo would look for it inside the ``rl_zoo3`` package);
+- a ``--conf-file`` that is no file from the current folder is looked up in that ``hyperparams/`` folder, so
+  ``--conf-file cpu/udpo.yml`` or ``--conf-file sac_pilot.yml`` work from anywhere;
+- ``plot_train -o FILE`` saves the figure (the zoo only calls ``plt.show()``), and ``-e Pilot/...`` finds the
+  zoo's log folders (named ``Pilot-...``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import site
+import sys
+import sysconfig
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import optuna
+
+from sb3_pilot.envs import register_envs
+from sb3_pilot.udpo import UDPO
+
+#: Commands of ``python -m rl_zoo3.cli`` that :func:`main` runs.
+ZOO_COMMANDS = ("train", "enjoy", "plot_train", "plot_from_file", "all_plots")
+#: The paper's UDPO search grid (appendix, "Important Hyperparameters"): ``lambda`` and ``Delta``.
+PLANNER_COEF_GRID = (1e-3, 5e-3, 1e-2, 5e-2, 1e-1)
+INVERSE_DYNAMICS_INTERVAL_GRID = (200, 500, 1500, 2000)
+
+
+def hyperparams_dir() -> Path:
+    """
+    The package's RL-Zoo YAML folder: ``hyperparams/`` of the source checkout (editable install), else the copy a
+    wheel installs under ``<prefix>/share/sb3_pilot/hyperparams`` (setup.cfg ``data_files``).
+    """
+    share = Path("share", "sb3_pilot", "hyperparams")
+    candidates = [
+        Path(__file__).resolve().parents[2] / "hyperparams",
+        Path(sysconfig.get_path("data")) / share,
+        Path(site.getuserbase()) / share,
+    ]
+    for candidate in candidates:
+        if (candidate / "udpo.yml").is_file():
+            return candidate
+    raise FileNotFoundError(f"sb3_pilot's hyperparams/ folder was not found in {[str(path) for path in candidates]}.")
+
+
+def sample_udpo_params(trial: optuna.Trial, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
+    """``--optimize`` sampler for UDPO: the zoo's SAC sampler plus the paper's grid for ``lambda`` and ``Delta``."""
+    from rl_zoo3.hyperparams_opt import sample_sac_params
+
+    hyperparams = sample_sac_params(trial, n_actions, n_envs, additional_args)
+    hyperparams["planner_coef"] = trial.suggest_categorical("planner_coef", PLANNER_COEF_GRID)
+    hyperparams["inverse_dynamics_interval"] = trial.suggest_categorical(
+        "inverse_dynamics_interval", INVERSE_DYNAMICS_INTERVAL_GRID
+    )
+    return hyperparams
+
+
+def register() -> None:
+    """Register the ``Pilot/`` tasks, and UDPO as the zoo's ``udpo`` (model class, ``--optimize`` sampler)."""
+    from rl_zoo3 import ALGOS
+    from rl_zoo3.hyperparams_opt import HYPERPARAMS_CONVERTER, HYPERPARAMS_SAMPLER, convert_offpolicy_params
+
+    register_envs()
+    ALGOS["udpo"] = UDPO
+    HYPERPARAMS_SAMPLER["udpo"] = sample_udpo_params
+    HYPERPARAMS_CONVERTER["udpo"] = convert_offpolicy_params
+
+
+def _with_conf_file(argv: list[str]) -> list[str]:
+    """``train`` arguments with ``--conf-file`` defaulted or resolved in :func:`hyperparams_dir` (see module doc)."""
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument("--algo", default="ppo")
+    parser.add_argument("--env", default="")
+    parser.add_argument("-conf", "--conf-file", default=None)
+    args, _ = parser.parse_known_args(argv)
+    if args.conf_file is None:
+        default = hyperparams_dir() / f"{args.algo}.yml"
+        if default.is_file() and (args.algo == "udpo" or args.env.startswith("Pilot/")):
+            return [*argv, "--conf-file", str(default)]
+    elif not Path(args.conf_file).exists() and (hyperparams_dir() / args.conf_file).is_file():
+        return [*argv, "--conf-file", str(hyperparams_dir() / args.conf_file)]
+    return argv
+
+
+def _plot_train(argv: list[str], prog: str) -> None:
+    """The zoo's ``plot_train``, with ``-o/--output`` (save the figure) and ``Pilot/`` env IDs."""
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument("-o", "--output", default=None)
+    args, zoo_argv = parser.parse_known_args(argv)
+    if args.output is not None:
+        import matplotlib
+
+        matplotlib.use("Agg")  # the zoo's plt.show() does nothing and the figure stays open to be saved
+    from matplotlib import pyplot as plt
+    from rl_zoo3.plots import plot_train
+
+    sys.argv = [prog, *(arg.replace("/", "-") if arg in gym.registry else arg for arg in zoo_argv)]
+    plot_train()
+    if args.output is not None:
+        plt.savefig(args.output)
+        print(f"Saved {args.output}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Run ``python -m sb3_pilot.experiments.zoo COMMAND [zoo flags]`` (``argv`` defaults to ``sys.argv[1:]``)."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if not argv or argv[0] not in ZOO_COMMANDS:
+        commands = ",".join(ZOO_COMMANDS)
+        raise SystemExit(f"usage: python -m sb3_pilot.experiments.zoo {{{commands}}} [RL-Zoo flags, see COMMAND -h]")
+    command, zoo_argv = argv[0], argv[1:]
+    prog = f"python -m sb3_pilot.experiments.zoo {command}"
+    register()
+    if command == "train":
+        from rl_zoo3.train import train
+
+        sys.argv = [prog, *_with_conf_file(zoo_argv)]
+        train()
+    elif command == "enjoy":
+        from rl_zoo3.enjoy import enjoy
+
+        sys.argv = [prog, *zoo_argv]
+        enjoy()
+    elif command == "plot_train":
+        _plot_train(zoo_argv, prog)
+    else:
+        from rl_zoo3 import plots
+
+        sys.argv = [prog, *zoo_argv]
+        getattr(plots, command)()
+
+
+if __name__ == "__main__":
+    main()

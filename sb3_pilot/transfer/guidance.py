@@ -1,0 +1,87 @@
+"""Zero-shot landmark guidance of a pre-trained goal-conditioned controller (paper section 3.3)."""
+
+from __future__ import annotations
+
+import os
+from typing import Any, SupportsFloat
+
+import gymnasium as gym
+import numpy as np
+
+from sb3_pilot.common.utils import check_number
+from sb3_pilot.distill import GoalPlanner
+
+
+class LandmarkGuidance(gym.Wrapper):
+    """
+    Zero-shot guidance (paper section 3.3): a pre-trained goal-conditioned controller (any SB3 model) sees the
+    planner's immediate landmark as its ``desired_goal``, while the env still judges reward and success against the
+    real goal (the wrapper passes them through untouched).
+
+    The landmark is ``k = horizon`` chained planner steps ahead of the achieved goal; the real goal is shown instead
+    once it is within reach: closer than ``switch_distance``, or (``switch_distance=None``) closer than the landmark.
+    ``info["landmark"]`` and ``info["real_desired_goal"]`` are added at each step, and the episode's landmarks and
+    achieved goals are kept in :attr:`episode_landmarks` and :attr:`episode_achieved_goals`, for drawing.
+
+    :param env: a goal env (Dict observation with ``achieved_goal`` and ``desired_goal``)
+    :param planner: the distilled goal planner, or the path of its file; its goal size and source task are checked
+        against ``env``
+    :param horizon: number ``k`` of chained planner steps to the landmark
+    :param switch_distance: distance to the real goal under which it replaces the landmark (None: the landmark's
+        distance; 0: never)
+    """
+
+    def __init__(
+        self,
+        env: gym.Env,
+        planner: GoalPlanner | str | os.PathLike,
+        horizon: int = 1,
+        switch_distance: float | None = None,
+    ):
+        check_number("horizon", horizon, minimum=1, integer=True)
+        if switch_distance is not None:
+            check_number("switch_distance", switch_distance, minimum=0)
+        super().__init__(env)
+        self.planner = GoalPlanner.for_env(planner, env)
+        self.horizon = horizon
+        self.switch_distance = switch_distance
+        self.real_desired_goal: np.ndarray | None = None
+        self._landmarks: list[np.ndarray] = []
+        self._achieved_goals: list[np.ndarray] = []
+
+    @property
+    def episode_landmarks(self) -> np.ndarray:
+        """Goals shown to the controller since the last reset, shape (steps + 1, goal_dim)."""
+        return np.array(self._landmarks)
+
+    @property
+    def episode_achieved_goals(self) -> np.ndarray:
+        """Achieved goals since the last reset, shape (steps + 1, goal_dim)."""
+        return np.array(self._achieved_goals)
+
+    def landmark(self, achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
+        """The goal to show the controller at ``achieved_goal`` for the real goal ``desired_goal``."""
+        landmark = self.planner.plan(achieved_goal, desired_goal, horizon=self.horizon)[-1]
+        distance = np.linalg.norm(desired_goal - achieved_goal)
+        reach = np.linalg.norm(landmark - achieved_goal) if self.switch_distance is None else self.switch_distance
+        return np.array(desired_goal) if distance <= reach else landmark
+
+    def _guide(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        self.real_desired_goal = np.array(observation["desired_goal"])
+        landmark = self.landmark(observation["achieved_goal"], self.real_desired_goal).astype(
+            observation["desired_goal"].dtype
+        )
+        self._landmarks.append(landmark)
+        self._achieved_goals.append(np.array(observation["achieved_goal"]))
+        return {**observation, "desired_goal": landmark}
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        observation, info = self.env.reset(seed=seed, options=options)
+        self._landmarks, self._achieved_goals = [], []
+        return self._guide(observation), info
+
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
+        observation, reward, terminated, truncated, info = self.env.step(action)
+        guided = self._guide(observation)
+        info["landmark"], info["real_desired_goal"] = guided["desired_goal"], self.real_desired_goal
+        return guided, reward, terminated, truncated, info
