@@ -12,6 +12,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
+import rl_zoo3
 import yaml
 from rl_zoo3.exp_manager import ExperimentManager
 from stable_baselines3 import HerReplayBuffer
@@ -64,6 +65,8 @@ PAPER_UDPO = {  # lambda, Delta
     "Pilot/Maze2D-v0": (1e-1, 1500),
     "Pilot/PointLocomotion-v0": (5e-3, 1500),
 }
+#: gymnasium-robotics' own goal tasks, covered under their own IDs by udpo.yml and sac.yml (not in the paper)
+ROBOTICS = ("FetchReach-v4", "FetchPush-v4", "PointMaze_UMaze-v3", "AntMaze_UMaze-v5")
 UDPO_TRANSFER_SOURCES = {
     "Pilot/FetchReachHighDim-v0": "Pilot/FetchReach-v0",
     "Pilot/FetchPushHighDim-v0": "Pilot/FetchPush-v0",
@@ -85,8 +88,8 @@ ENTRIES = [(name, env_id) for name in FILES for env_id in load(name)]
 
 
 def test_files_and_tasks() -> None:
-    assert set(load("udpo.yml")) == {*SOURCES, *UDPO_TRANSFER_SOURCES}
-    assert set(load("sac.yml")) == set(PILOT_ENV_IDS)
+    assert set(load("udpo.yml")) == {*SOURCES, *UDPO_TRANSFER_SOURCES, *ROBOTICS}
+    assert set(load("sac.yml")) == {*PILOT_ENV_IDS, *ROBOTICS}
     assert set(load("sac_pilot.yml")) == set(PLANNER_SOURCES)
     for name in PAPER_FILES:
         assert set(load(f"cpu/{name}")) == set(load(name)), name
@@ -96,6 +99,8 @@ def test_files_and_tasks() -> None:
 def test_paper_tables(name: str) -> None:
     """Every entry carries its row of the paper's tables (Ant-Maze, in none, takes Ant-Locomotion's)."""
     for env_id, params in load(name).items():
+        if env_id in ROBOTICS:
+            continue  # not in the paper: see test_robotics_entries
         row = PAPER_HER["Pilot/AntLocomotion-v0" if env_id == "Pilot/AntMaze-v0" else env_id]
         _, _, _, q_lr, policy_lr = row
         assert (params["buffer_size"], params["batch_size"], params.get("n_envs", 1)) == row[:3], env_id
@@ -110,6 +115,18 @@ def test_paper_tables(name: str) -> None:
             ((wrapper, kwargs),) = params["env_wrapper"][0].items()
             assert wrapper == "sb3_pilot.PilotBonusWrapper" and kwargs["beta"] == 1.0, env_id
             assert "PilotHerReplayBuffer" in params["replay_buffer_class"], env_id
+
+
+def test_robotics_entries() -> None:
+    """gymnasium-robotics' tasks: FetchReach-v4 is RL-Zoo's own FetchReach SAC recipe; UDPO adds only its own keys."""
+    zoo_fetch_reach = yaml.safe_load((Path(rl_zoo3.__file__).parent / "hyperparams" / "sac.yml").read_text())["FetchReach-v1"]
+    ours = load("sac.yml")["FetchReach-v4"]
+    for key in ("gamma", "learning_rate", "batch_size", "learning_starts", "normalize", "buffer_size"):
+        assert ours[key] == zoo_fetch_reach[key], key
+    udpo_keys = {"planner_coef", "planner_learning_rate", "inverse_dynamics_learning_rate", "inverse_dynamics_interval"}
+    for env_id in ROBOTICS:
+        sac, udpo = load("sac.yml")[env_id], load("udpo.yml")[env_id]
+        assert set(udpo) - set(sac) == udpo_keys and all(udpo[key] == value for key, value in sac.items()), env_id
 
 
 @pytest.mark.parametrize("name", list(PAPER_FILES))
@@ -303,3 +320,16 @@ def test_plain_rl_zoo3_train(tmp_path: Path) -> None:
         cwd=tmp_path,
     )
     assert (tmp_path / "logs" / "sac" / "Pilot-Maze2D-v0_1" / "Pilot-Maze2D-v0.zip").is_file()
+
+
+@pytest.mark.parametrize("algo", ["udpo", "sac"])
+def test_robotics_task_under_its_own_id(tmp_path: Path, algo: str) -> None:
+    """The issue's command: gymnasium-robotics' FetchReach-v4 trains from this package's YAML (float64 observations)."""
+    assert _with_conf_file(["--algo", algo, "--env", "FetchReach-v4"])[-1] == str(HYPERPARAMS / f"{algo}.yml")
+    run(
+        *("-m", "sb3_pilot.experiments.zoo", "train", "--algo", algo, "--env", "FetchReach-v4"),
+        *("--gym-packages", "gymnasium_robotics", "-n", "150", "-f", "logs", "--eval-freq", "-1", "--num-threads", "1"),
+        *("-params", "learning_starts:100", "batch_size:32"),
+        cwd=tmp_path,
+    )
+    assert (tmp_path / "logs" / algo / "FetchReach-v4_1" / "FetchReach-v4.zip").is_file()

@@ -5,8 +5,9 @@ RL-Zoo entry point: ``python -m sb3_pilot.experiments.zoo train|enjoy|plot_train
 ``--optimize``) and registers the ``Pilot/`` tasks; :func:`main` then runs the zoo's own command, as the RL-Zoo
 docs do for SBX, so every zoo flag works. Three conveniences on top of ``python -m rl_zoo3.cli``:
 
-- ``train`` without ``--conf-file`` reads this package's ``hyperparams/<algo>.yml`` for ``udpo`` and for any
-  ``Pilot/`` task (the zoo would look for it inside the ``rl_zoo3`` package);
+- ``train`` without ``--conf-file`` reads this package's ``hyperparams/<algo>.yml`` for ``udpo`` and for any task
+  that file has an entry for (every ``Pilot/`` task, gymnasium-robotics' ``FetchReach-v4``, ...), where the zoo
+  would look inside the ``rl_zoo3`` package;
 - a ``--conf-file`` that is no file from the current folder is looked up in that ``hyperparams/`` folder, so
   ``--conf-file cpu/udpo.yml`` or ``--conf-file sac_pilot.yml`` work from anywhere;
 - ``plot_train -o FILE`` saves the figure (the zoo only calls ``plt.show()``), and ``-e Pilot/...`` finds the
@@ -24,6 +25,7 @@ from typing import Any
 
 import gymnasium as gym
 import optuna
+import yaml
 
 from sb3_pilot.envs import register_envs
 from sb3_pilot.udpo import UDPO
@@ -65,11 +67,16 @@ def sample_udpo_params(trial: optuna.Trial, n_actions: int, n_envs: int, additio
 
 
 def register() -> None:
-    """Register the ``Pilot/`` tasks, and UDPO as the zoo's ``udpo`` (model class, ``--optimize`` sampler)."""
+    """
+    Register the ``Pilot/`` tasks and gymnasium-robotics' tasks (whose own IDs ``hyperparams/`` also covers), and UDPO
+    as the zoo's ``udpo`` (model class, ``--optimize`` sampler).
+    """
+    import gymnasium_robotics
     from rl_zoo3 import ALGOS
     from rl_zoo3.hyperparams_opt import HYPERPARAMS_CONVERTER, HYPERPARAMS_SAMPLER, convert_offpolicy_params
 
     register_envs()
+    gym.register_envs(gymnasium_robotics)
     ALGOS["udpo"] = UDPO
     HYPERPARAMS_SAMPLER["udpo"] = sample_udpo_params
     HYPERPARAMS_CONVERTER["udpo"] = convert_offpolicy_params
@@ -84,7 +91,7 @@ def _with_conf_file(argv: list[str]) -> list[str]:
     args, _ = parser.parse_known_args(argv)
     if args.conf_file is None:
         default = hyperparams_dir() / f"{args.algo}.yml"
-        if default.is_file() and (args.algo == "udpo" or args.env.startswith("Pilot/")):
+        if default.is_file() and (args.algo == "udpo" or args.env in yaml.safe_load(default.read_text())):
             return [*argv, "--conf-file", str(default)]
     elif not Path(args.conf_file).exists() and (hyperparams_dir() / args.conf_file).is_file():
         return [*argv, "--conf-file", str(hyperparams_dir() / args.conf_file)]

@@ -29,6 +29,8 @@ from sb3_pilot.common.distributions import (
 DESIRED_GOAL = "desired_goal"
 #: The key whose value is the goal mapping ``phi(s)``: placed last in the planner state.
 ACHIEVED_GOAL = "achieved_goal"
+#: Why UDPO refuses gSDE.
+NO_SDE = "UDPO does not support gSDE (use_sde=True): its action comes from the inverse dynamics, not from an SDE actor."
 
 
 def planner_state_keys(observation_space: spaces.Space) -> tuple[str, ...]:
@@ -280,6 +282,7 @@ class UDPOPolicy(BasePolicy):
     :param inverse_dynamics_lr_schedule: Learning rate schedule of the inverse dynamics (None: ``lr_schedule``)
     :param freeze_state_planner: hold the state planner fixed (a planner transferred from a source, see
         :meth:`load_state_planner`): UDPO then trains only the inverse dynamics and the critics
+    :param use_sde: must be False (accepted because SAC writes it into the ``policy_kwargs`` dict it is given)
     """
 
     state_planner: StatePlanner
@@ -303,7 +306,10 @@ class UDPOPolicy(BasePolicy):
         planner_lr_schedule: Schedule | None = None,
         inverse_dynamics_lr_schedule: Schedule | None = None,
         freeze_state_planner: bool = False,
+        use_sde: bool = False,
     ):
+        if use_sde:
+            raise ValueError(NO_SDE)
         check_observation_space(observation_space)
         super().__init__(
             observation_space,

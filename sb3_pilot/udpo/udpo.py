@@ -22,6 +22,7 @@ from torch.nn import functional as F
 
 from sb3_pilot.common.utils import check_number, frozen
 from sb3_pilot.udpo.policies import (
+    NO_SDE,
     InverseDynamics,
     MlpPolicy,
     MultiInputPolicy,
@@ -81,6 +82,7 @@ class UDPO(OffPolicyAlgorithm):
     :param ent_coef: Entropy regularization coefficient, ``'auto'`` (or ``'auto_0.1'``) to learn it
     :param target_update_interval: update the target network every ``target_update_interval`` gradient steps
     :param target_entropy: target entropy when learning ``ent_coef`` (``'auto'``: ``-dim(action)``)
+    :param use_sde: must be False: the action comes from the inverse dynamics (accepted for SAC's signature)
     :param planner_coef: ``lambda``, weight of the planner's negative log-likelihood of real transitions
         (paper default 1e-2)
     :param inverse_dynamics_interval: ``Delta``, number of gradient steps between two refits of the inverse dynamics
@@ -127,6 +129,7 @@ class UDPO(OffPolicyAlgorithm):
         ent_coef: str | float = "auto",
         target_update_interval: int = 1,
         target_entropy: str | float = "auto",
+        use_sde: bool = False,
         planner_coef: float = 1e-2,
         inverse_dynamics_interval: int = 1500,
         inverse_dynamics_gradient_steps: int = 50,
@@ -140,6 +143,8 @@ class UDPO(OffPolicyAlgorithm):
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
     ):
+        if use_sde:
+            raise ValueError(NO_SDE)
         check_number("planner_coef (lambda)", planner_coef, minimum=0)
         for name, rate in (
             ("learning_rate", learning_rate),
