@@ -28,6 +28,7 @@ import optuna
 import yaml
 
 from sb3_pilot.envs import register_envs
+from sb3_pilot.experiments.evaluation import GoalEvalCallback
 from sb3_pilot.udpo import UDPO
 
 #: Commands of ``python -m rl_zoo3.cli`` that :func:`main` runs.
@@ -68,15 +69,17 @@ def sample_udpo_params(trial: optuna.Trial, n_actions: int, n_envs: int, additio
 
 def register() -> None:
     """
-    Register the ``Pilot/`` tasks and gymnasium-robotics' tasks (whose own IDs ``hyperparams/`` also covers), and UDPO
-    as the zoo's ``udpo`` (model class, ``--optimize`` sampler).
+    Register the ``Pilot/`` tasks and gymnasium-robotics' tasks (whose own IDs ``hyperparams/`` also covers), UDPO
+    as the zoo's ``udpo`` (model class, ``--optimize`` sampler), and :class:`GoalEvalCallback` as the zoo's evaluation
+    (``evaluations.npz`` gets ``final_distances``).
     """
     import gymnasium_robotics
-    from rl_zoo3 import ALGOS
+    from rl_zoo3 import ALGOS, exp_manager
     from rl_zoo3.hyperparams_opt import HYPERPARAMS_CONVERTER, HYPERPARAMS_SAMPLER, convert_offpolicy_params
 
     register_envs()
     gym.register_envs(gymnasium_robotics)
+    exp_manager.EvalCallback = GoalEvalCallback  # the zoo's evaluations also record the final distance to the goal
     ALGOS["udpo"] = UDPO
     HYPERPARAMS_SAMPLER["udpo"] = sample_udpo_params
     HYPERPARAMS_CONVERTER["udpo"] = convert_offpolicy_params

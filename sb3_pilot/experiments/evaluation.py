@@ -1,0 +1,73 @@
+"""
+Evaluation that also measures how far from its goal an agent ends: at a 0.1 success radius, an Ant that walks most
+of the way scores 0 success, and only the distance says whether it moves towards goals.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.callbacks import EvalCallback
+from stable_baselines3.common.vec_env import unwrap_vec_normalize
+
+
+def final_distance(info: dict[str, Any]) -> float | None:
+    """
+    Distance between the achieved and the desired goal at the end of an episode, read from the terminal observation
+    a ``VecEnv`` puts in the last step's info (raw coordinates: ``VecNormalize`` normalises it, so it is unnormalised
+    by the caller when needed). None for observations without goals.
+
+    :param info: the info dict of an episode's last step
+    """
+    observation = info.get("terminal_observation")
+    if not isinstance(observation, dict) or not {"achieved_goal", "desired_goal"} <= observation.keys():
+        return None
+    difference = np.asarray(observation["achieved_goal"], dtype=np.float64) - observation["desired_goal"]
+    return float(np.linalg.norm(difference))
+
+
+class GoalEvalCallback(EvalCallback):
+    """
+    SB3's ``EvalCallback`` that also records, for goal envs, the mean distance between the achieved and the desired
+    goal at the end of the evaluation episodes: logged as ``eval/final_distance`` and saved in ``evaluations.npz``
+    as ``final_distances`` (one value per evaluation, beside ``successes``). Same parameters as ``EvalCallback``.
+    The zoo entry (:func:`sb3_pilot.experiments.zoo.register`) makes the RL Zoo evaluate with it.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any):
+        super().__init__(*args, **kwargs)
+        self.evaluations_final_distance: list[float] = []
+        self._episode_distances: list[float] = []
+
+    def _log_success_callback(self, locals_: dict[str, Any], globals_: dict[str, Any]) -> None:
+        super()._log_success_callback(locals_, globals_)
+        if locals_["done"]:
+            info = dict(locals_["info"])
+            vec_normalize = unwrap_vec_normalize(self.eval_env)
+            if vec_normalize is not None and isinstance(info.get("terminal_observation"), dict):
+                info["terminal_observation"] = vec_normalize.unnormalize_obs(info["terminal_observation"])
+            distance = final_distance(info)
+            if distance is not None:
+                self._episode_distances.append(distance)
+
+    def _on_step(self) -> bool:
+        evaluating = self.eval_freq > 0 and self.n_calls % self.eval_freq == 0
+        self._episode_distances = []
+        continue_training = super()._on_step()
+        if evaluating and self._episode_distances:
+            mean_distance = float(np.mean(self._episode_distances))
+            self.evaluations_final_distance.append(mean_distance)
+            self.logger.record("eval/final_distance", mean_distance)
+            if self.log_path is not None:
+                data = dict(np.load(f"{self.log_path}.npz" if not self.log_path.endswith(".npz") else self.log_path))
+                data["final_distances"] = np.array(self.evaluations_final_distance)
+                np.savez(self.log_path, **data)
+        return continue_training
+
+
+def load_final_distances(evaluations: str | os.PathLike) -> np.ndarray | None:
+    """The ``final_distances`` of an ``evaluations.npz`` written by :class:`GoalEvalCallback` (None if it has none)."""
+    with np.load(evaluations) as data:
+        return np.array(data["final_distances"]) if "final_distances" in data else None
