@@ -49,18 +49,20 @@ WORKER = "from sb3_pilot.experiments.challenges.backends import stage_process_ma
 
 class StageFailed(RuntimeError):
     """
-    A stage failed: the message names it and quotes the tail of its log.
+    A stage failed: the message names it, says why and quotes the tail of its log.
 
-    :param message: the message
     :param key: ``seed_<k>/<stage>``
+    :param reason: why (exit status, node, the stages stopped with it)
+    :param log: its log file
+    :param tail: the last lines of its log
     """
 
-    def __init__(self, message: str, key: str = "") -> None:
-        super().__init__(message, key)
-        self.key = key
+    def __init__(self, key: str, reason: str, log: str, tail: str) -> None:
+        super().__init__(key, reason, log, tail)
+        self.key, self.reason, self.log, self.tail = key, reason, log, tail
 
     def __str__(self) -> str:
-        return str(self.args[0])
+        return f"Stage {self.key} failed ({self.reason}). Last lines of {self.log}:\n{self.tail}"
 
 
 @dataclass
@@ -108,7 +110,7 @@ def log_tail(path: Path, lines: int = TAIL_LINES) -> str:
 
 def failure(task: StageTask, reason: str) -> StageFailed:
     """The error of a failed stage: its key, why, and its log's tail."""
-    return StageFailed(f"Stage {task.key} failed ({reason}). Last lines of {task.log}:\n{log_tail(task.log)}", task.key)
+    return StageFailed(task.key, reason, str(task.log), log_tail(task.log))
 
 
 def read_marker(task: StageTask) -> dict[str, Any]:
@@ -231,7 +233,14 @@ def _ray_stage(task: StageTask, *needs: dict[str, Any]) -> dict[str, Any]:
     reads from as ``needs`` (it starts the task once they exist); cancelling the task stops the process.
 
     :return: the stage's marker
+    :raise StageFailed: also when the outputs of the stages it reads from are not on this node
     """
+    missing = [need for need in task.needs if not task.ctx.outputs[need.split("/")[1]].exists()]
+    if missing:
+        tail = f"missing here: {[str(task.ctx.outputs[need.split('/')[1]]) for need in missing]}"
+        where = socket.gethostname()
+        reason = f"the outputs of {', '.join(missing)} are not on {where}: --root must be on storage every node sees"
+        raise StageFailed(task.key, reason, "(not started)", tail)
     process = start_stage(task)
     try:
         while (code := process.poll()) is None:
@@ -285,7 +294,7 @@ def run_ray(tasks: Sequence[StageTask], address: str | None, on_start: OnStart, 
                     cause = getattr(error, "cause", error)
                     stopped = f"; cancelled {', '.join(by_ref[ref].key for ref in waiting)}" if waiting else ""
                     if isinstance(cause, StageFailed):
-                        raise StageFailed(f"{cause}{stopped}", cause.key) from None
+                        raise StageFailed(cause.key, f"{cause.reason}{stopped}", cause.log, cause.tail) from None
                     raise failure(task, f"{type(error).__name__} in Ray{stopped}: {error}") from error
                 if task.key not in seen:
                     seen.add(task.key)
