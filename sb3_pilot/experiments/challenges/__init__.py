@@ -2,11 +2,13 @@
 The paper's four transfer challenges as runners over the RL Zoo: ``python -m sb3_pilot.experiments.challenges NAME``.
 
 Each challenge chains zoo training runs (``python -m sb3_pilot.experiments.zoo train``), distillation and guidance stages for
-every seed, resumes what already finished, and writes ``<root>/<challenge>/summary.json``.
+every seed, resumes what already finished, and writes ``<root>/<challenge>/summary.json``. Each stage runs in a
+process of its own, up to ``--jobs N`` at once on this machine or as Ray tasks (``--backend ray``).
 """
 
+from sb3_pilot.experiments.challenges.backends import StageFailed
 from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, Challenge
-from sb3_pilot.experiments.challenges.runner import format_table, run_challenge, steps_to
+from sb3_pilot.experiments.challenges.runner import format_table, run_challenge, stage_graph, steps_to
 from sb3_pilot.experiments.challenges.stages import Budget, Distill, Guidance, ZooTrain
 
 __all__ = [
@@ -16,8 +18,10 @@ __all__ = [
     "Challenge",
     "Distill",
     "Guidance",
+    "StageFailed",
     "ZooTrain",
     "format_table",
     "run_challenge",
+    "stage_graph",
     "steps_to",
 ]

@@ -1,10 +1,14 @@
-"""``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N [--root zoo_runs] [--plot]``."""
+"""
+``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N [--root zoo_runs] [--plot]
+[--jobs N | --backend ray [--ray-address ADDR]] [--threads T]``.
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
+from sb3_pilot.experiments.challenges.backends import BACKENDS, StageFailed
 from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES
 from sb3_pilot.experiments.challenges.runner import run_challenge
 
@@ -22,19 +26,40 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--seeds", type=int, default=1, help="number of seeds (0 .. N-1)")
     parser.add_argument("--root", default="zoo_runs", help="output root: writes ROOT/CHALLENGE/")
     parser.add_argument("--plot", action="store_true", help="render the PNGs afterwards (sb3_pilot.experiments.plots)")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
-    parser.add_argument("-v", "--verbose", type=int, default=0, help="1: the zoo's and SB3's logs")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars (in the stages' logs)")
+    parser.add_argument("-v", "--verbose", type=int, default=0, help="1: the zoo's and SB3's logs (in the stages' logs)")
+    parser.add_argument(
+        "--jobs", type=int, default=1, help="local backend: up to N stages at once on this machine (independent ones)"
+    )
+    parser.add_argument(
+        "--backend", choices=BACKENDS, default="local", help="local: this machine (--jobs); ray: every stage a Ray task"
+    )
+    parser.add_argument(
+        "--ray-address",
+        default=None,
+        help="ray backend: the cluster (ray.init's address, e.g. auto); none: a running Ray or a local one started here",
+    )
+    parser.add_argument(
+        "--threads", type=int, default=1, help="torch threads per stage process (the CPUs each Ray task declares)"
+    )
     args = parser.parse_args(argv)
     names = list(CHALLENGES) if args.challenge == "all" else [args.challenge]
     for name in names:
-        run_challenge(
-            name,
-            args.budget,
-            seeds=range(args.seeds),
-            root=args.root,
-            progress=not args.no_progress and sys.stdout.isatty(),
-            verbose=args.verbose,
-        )
+        try:
+            run_challenge(
+                name,
+                args.budget,
+                seeds=range(args.seeds),
+                root=args.root,
+                progress=not args.no_progress and sys.stdout.isatty(),
+                verbose=args.verbose,
+                jobs=args.jobs,
+                backend=args.backend,
+                ray_address=args.ray_address,
+                threads=args.threads,
+            )
+        except StageFailed as error:
+            sys.exit(f"{name}: {error}")
         if args.plot:
             from sb3_pilot.experiments.plots import plot_challenge
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -11,8 +12,9 @@ from typing import Any
 import numpy as np
 import torch as th
 
+from sb3_pilot.experiments.challenges.backends import BACKENDS, StageTask, run_local, run_ray
 from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, Challenge
-from sb3_pilot.experiments.challenges.stages import Budget, StageContext, run_stage
+from sb3_pilot.experiments.challenges.stages import STAGE_MARKER, Budget, StageContext, config_hash, portable
 
 #: Success rates whose first crossing the summary reports (``steps_to_50``, ``steps_to_90``).
 THRESHOLDS = (0.5, 0.9)
@@ -87,50 +89,175 @@ def summarize(
     }
 
 
+def stage_graph(challenge: Challenge, seeds: Sequence[int]) -> dict[str, tuple[str, ...]]:
+    """
+    The stage graph of a challenge: for every seed and stage, ``seed_<k>/<stage>``, the keys of the stages it reads
+    from (the same seed's). Stages of different seeds, and stages that read nothing (a baseline), are independent.
+
+    :param challenge: the challenge
+    :param seeds: the seeds
+    :return: the graph, a stage after those it reads from (seed by seed, in the challenge's order)
+    :raise ValueError: when a stage reads from a stage that is not before it in the challenge
+    """
+    graph: dict[str, tuple[str, ...]] = {}
+    for seed in seeds:
+        before: set[str] = set()
+        for stage in challenge.stages:
+            unknown = [need for need in stage.needs if need not in before]
+            if unknown:
+                raise ValueError(f"Stage {stage.name!r} of {challenge.name} reads from {unknown}, which are not before it.")
+            graph[f"seed_{seed}/{stage.name}"] = tuple(f"seed_{seed}/{need}" for need in stage.needs)
+            before.add(stage.name)
+    return graph
+
+
+def plan(
+    challenge: Challenge, seeds: Sequence[int], out_dir: Path, ctx_kwargs: dict[str, Any]
+) -> tuple[list[StageTask], dict[str, dict[str, Any]]]:
+    """
+    What is left to run: every stage's configuration and hash (from those of the stages it reads from), and the
+    stages whose marker holds that hash (finished: skipped).
+
+    :param challenge: the challenge
+    :param seeds: the seeds
+    :param out_dir: ``<root>/<challenge>``
+    :param ctx_kwargs: the other arguments of :class:`StageContext`
+    :return: the stages to run (a stage after those it reads from) and the markers of the finished ones
+    """
+    graph = stage_graph(challenge, seeds)
+    tasks: list[StageTask] = []
+    finished: dict[str, dict[str, Any]] = {}
+    for seed in seeds:
+        seed_dir = out_dir / "models" / f"seed_{seed}"
+        ctx = StageContext(seed_dir, seed, **ctx_kwargs)
+        ctx.outputs = {stage.name: stage.output(seed_dir / stage.name) for stage in challenge.stages}
+        hashes: dict[str, str] = {}
+        for stage in challenge.stages:
+            key, stage_dir = f"seed_{seed}/{stage.name}", seed_dir / stage.name
+            config = portable(stage.config(ctx, stage_dir), out_dir)
+            hashes[stage.name] = digest = config_hash(config, [hashes[name] for name in stage.needs])
+            marker_path = stage_dir / STAGE_MARKER
+            if marker_path.exists():
+                marker = json.loads(marker_path.read_text())
+                if marker["config_hash"] == digest:
+                    finished[key] = {**marker, "skipped": True}
+                    continue
+            tasks.append(StageTask(key, stage, ctx, stage_dir, config, digest, graph[key]))
+    return tasks, finished
+
+
 def run_challenge(
-    name: str,
+    name: str | Challenge,
     budget: str | Budget = "smoke",
     seeds: Sequence[int] = (0,),
     root: str | Path = "zoo_runs",
     steps: dict[str, int] | None = None,
     progress: bool = False,
     verbose: int = 0,
+    jobs: int = 1,
+    backend: str = "local",
+    ray_address: str | None = None,
+    threads: int = 1,
 ) -> dict[str, Any]:
     """
-    Run (or resume) a challenge: every stage for every seed, seed after seed, then write ``summary.json`` (also
-    after each seed, so a long run shows its results as they come).
+    Run (or resume) a challenge: every stage for every seed, each in a process of its own (its output in
+    ``stage.log`` in its folder), a stage once the stages it reads from have finished; then write ``summary.json``
+    (also whenever all the stages of a seed have finished, so a long run shows its results as they come). The
+    summary does not depend on the backend nor on ``jobs``.
 
-    :param name: a key of :data:`~sb3_pilot.challenges.CHALLENGES`
+    :param name: a key of :data:`~sb3_pilot.challenges.CHALLENGES` (or a :class:`Challenge`)
     :param budget: a key of :data:`~sb3_pilot.challenges.BUDGETS` or a custom :class:`Budget`
     :param seeds: the seeds
     :param root: output root; the challenge writes into ``<root>/<name>/``
     :param steps: env steps per stage, overriding the budget's (e.g. the demo's)
-    :param progress: show progress bars (the zoo's, the distillation's)
-    :param verbose: 1 lets the zoo and SB3 print their logs
+    :param progress: progress bars of the zoo and the distillation (in the stages' logs)
+    :param verbose: 1 lets the zoo and SB3 print their logs (in the stages' logs)
+    :param jobs: ``local`` backend: how many stages may run at once on this machine
+    :param backend: ``local`` (this machine, ``jobs`` processes) or ``ray`` (every stage a Ray task)
+    :param ray_address: ``ray`` backend: the cluster's address (None: a running Ray, or a local one started here)
+    :param threads: torch threads of each stage's process (the CPUs a Ray task declares)
     :return: the summary
+    :raise StageFailed: when a stage fails (its name and its log's tail; the other stages were stopped)
     """
-    if name not in CHALLENGES:
+    if isinstance(name, Challenge):
+        challenge = name
+    elif name in CHALLENGES:
+        challenge = CHALLENGES[name]
+    else:
         raise ValueError(f"Unknown challenge {name!r}, choose one of {sorted(CHALLENGES)}.")
-    challenge = CHALLENGES[name]
+    if backend not in BACKENDS:
+        raise ValueError(f"Unknown backend {backend!r}, choose one of {list(BACKENDS)}.")
+    if jobs < 1 or threads < 1:
+        raise ValueError(f"jobs and threads must be at least 1, not {jobs} and {threads}.")
+    if backend == "ray" and jobs != 1:
+        raise ValueError("jobs is for the local backend: Ray runs as many stages at once as the cluster has CPUs.")
     budget = BUDGETS[budget] if isinstance(budget, str) else budget
-    out_dir = Path(root).resolve() / name
+    out_dir = Path(root).resolve() / challenge.name
     stage_steps = {**challenge.steps.get(budget.name, {}), **(steps or {})}
     fast = challenge.fast_hyperparams if budget.fast else {}
-    th.set_num_threads(1)  # 2 busy cores: one torch thread is the fastest (the zoo stages also pass --num-threads 1)
-    markers: dict[str, dict[str, Any]] = {}
-    summary: dict[str, Any] = {}
-    n_jobs, job, start = len(seeds) * len(challenge.stages), 0, time.perf_counter()
-    for done, seed in enumerate(seeds):
-        ctx = StageContext(
-            out_dir / "models" / f"seed_{seed}", seed, budget, stage_steps, fast, progress=progress, verbose=verbose
-        )
-        hashes: dict[str, str] = {}
-        for stage in challenge.stages:
-            job += 1
-            label = f"[{name} {budget.name} {job}/{n_jobs} {time.perf_counter() - start:.0f}s] seed {seed}"
-            markers[f"seed_{seed}/{stage.name}"] = run_stage(stage, ctx, hashes, label)
-        summary = summarize(challenge, budget, seeds[: done + 1], out_dir, markers)
-        (out_dir / SUMMARY).write_text(json.dumps(summary, indent=1))
+    th.set_num_threads(1)  # this process only waits for the stages' processes
+    ctx_kwargs = {"budget": budget, "steps": stage_steps, "fast_hyperparams": fast, "progress": progress}
+    tasks, markers = plan(challenge, seeds, out_dir, {**ctx_kwargs, "verbose": verbose, "threads": threads})
+    for task in tasks:  # interrupted, or configured differently: start over (a started stage is one with a log)
+        if task.stage_dir.exists():
+            shutil.rmtree(task.stage_dir)
+
+    keys = list(stage_graph(challenge, seeds))
+    seed_keys = {seed: [key for key in keys if key.startswith(f"seed_{seed}/")] for seed in seeds}
+    running: list[str] = []
+    start = time.perf_counter()
+    summarized: list[int] = []
+
+    def label(done: int | None = None) -> str:
+        done = len(markers) if done is None else done
+        return f"[{challenge.name} {budget.name} {done}/{len(keys)} {time.perf_counter() - start:.0f}s]"
+
+    def show_running() -> None:
+        print(f"{label()[:-1]} running: {', '.join(running) or '-'}]", flush=True)
+
+    def write_summary() -> dict[str, Any]:
+        """The summary of the seeds whose stages have all finished (all of them at the end)."""
+        done = [seed for seed in seeds if all(key in markers for key in seed_keys[seed])]
+        if not done:
+            return {}
+        summary = summarize(challenge, budget, done, out_dir, {key: markers[key] for key in keys if key in markers})
+        if done != summarized:
+            (out_dir / SUMMARY).write_text(json.dumps(summary, indent=1))
+            summarized[:] = done
+        return summary
+
+    def on_start(task: StageTask) -> None:
+        running.append(task.key)
+        stage = task.key.split("/")[1]
+        print(f"{label()} seed {task.ctx.seed} {stage}: {task.stage.describe(task.ctx, task.stage_dir)}", flush=True)
+        show_running()
+
+    def on_finish(task: StageTask, marker: dict[str, Any]) -> None:
+        if task.key in running:
+            running.remove(task.key)
+        markers[task.key] = {**marker, "skipped": False}
+        stage = task.key.split("/")[1]
+        print(f"{label()} seed {task.ctx.seed} {stage}: finished in {marker['wall_time_s']:.0f} s", flush=True)
+        if running:
+            show_running()
+        write_summary()
+
+    for done, (key, marker) in enumerate(markers.items(), 1):
+        seed, stage = key.split("/")
+        print(f"{label(done)} {seed.replace('_', ' ')} {stage}: done ({marker['wall_time_s']:.0f} s), skipped", flush=True)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if markers:
+        write_summary()
+    where = f"Ray ({ray_address or 'local'})" if backend == "ray" else f"{jobs} job{'s' * (jobs > 1)}"
+    if tasks:
+        print(f"{label()} {len(tasks)} stage{'s' * (len(tasks) > 1)} to run, {where}, {threads} thread(s) each", flush=True)
+    if backend == "ray":
+        run_ray(tasks, ray_address, on_start, on_finish)
+    else:
+        run_local(tasks, jobs, on_start, on_finish)
+    summary = write_summary()
+    (out_dir / SUMMARY).write_text(json.dumps(summary, indent=1))
+    print(f"{label()} done", flush=True)
     print(format_table(summary))
     return summary
 

@@ -1,5 +1,5 @@
 """
-The stages of a transfer challenge and the one runner that chains them.
+The stages of a transfer challenge, their configuration hash and the marker of a finished stage.
 
 A challenge is a list of stages run once per seed: :class:`ZooTrain` (a ``python -m sb3_pilot.experiments.zoo train`` run),
 :class:`Distill` (:func:`~sb3_pilot.distill_goal_planner` on a trained UDPO) and :class:`Guidance` (a pre-trained
@@ -7,7 +7,8 @@ controller guided by a goal planner, :class:`~sb3_pilot.LandmarkGuidance`, with 
 into its own folder ``<root>/<challenge>/models/seed_<k>/<stage>/`` (``models/`` is gitignored) and, when it has
 finished, a marker ``stage.json`` holding the hash of its configuration (its settings, its budget and the hashes
 of the stages it reads from). A stage whose marker matches is skipped on the next run; one without (interrupted)
-or with another hash is removed and run again.
+or with another hash is removed and run again. Each stage runs in a process of its own whose output goes to
+``stage.log`` in its folder (:mod:`sb3_pilot.experiments.challenges.backends`).
 """
 
 from __future__ import annotations
@@ -15,8 +16,6 @@ from __future__ import annotations
 import hashlib
 import json
 import shlex
-import shutil
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,6 +36,8 @@ from sb3_pilot.udpo import UDPO
 
 #: Marker a finished stage leaves in its folder.
 STAGE_MARKER = "stage.json"
+#: The stage process's stdout and stderr, in its folder.
+STAGE_LOG = "stage.log"
 #: Hyperparameters of a zoo stage computed from the outputs of earlier stages (``{stage name: path}``).
 Params = Callable[[dict[str, Path]], dict[str, Any]]
 
@@ -77,6 +78,7 @@ class StageContext:
     :param outputs: main output file of each finished stage (model zip, planner file, result file)
     :param progress: show progress bars
     :param verbose: verbosity of the zoo and of SB3 (0 or 1)
+    :param threads: torch (and OpenMP) threads of the stage's process
     """
 
     seed_dir: Path
@@ -87,6 +89,7 @@ class StageContext:
     outputs: dict[str, Path] = field(default_factory=dict)
     progress: bool = False
     verbose: int = 0
+    threads: int = 1
 
 
 class CSVLogger(BaseCallback):
@@ -198,7 +201,7 @@ class ZooTrain:
         callbacks = [{f"{__name__}.CSVLogger": {"folder": str(stage_dir)}}, *hyperparams.pop("callback", [])]
         hyperparams["callback"] = callbacks
         args = ["train", "--algo", self.algo, "--env", self.env_id, "--conf-file", conf_file, "-f", str(stage_dir)]
-        args += ["--seed", str(ctx.seed), "-n", str(steps), "--num-threads", "1"]
+        args += ["--seed", str(ctx.seed), "-n", str(steps), "--num-threads", str(ctx.threads)]
         args += ["--eval-freq", str(max(steps // ctx.budget.n_evals, 1)), "--eval-episodes", str(ctx.budget.eval_episodes)]
         args += ["-params", *(f"{key}:{value!r}" for key, value in hyperparams.items())]
         if self.env_kwargs:
@@ -363,36 +366,3 @@ def portable(config: dict[str, Any], run_dir: Path) -> dict[str, Any]:
     :param run_dir: ``<root>/<challenge>``
     """
     return json.loads(json.dumps(config, default=str).replace(str(run_dir), RUN_DIR))
-
-
-def run_stage(stage: Stage, ctx: StageContext, hashes: dict[str, str], label: str) -> dict[str, Any]:
-    """
-    Run one stage unless its marker says it already ran with this configuration.
-
-    :param stage: the stage
-    :param ctx: its context (``ctx.outputs`` gets the stage's output)
-    :param hashes: configuration hashes of the stages run so far for this seed (gets this stage's)
-    :param label: prefix of the progress line
-    :return: the stage's marker (``config_hash``, ``config``, ``wall_time_s``, ``skipped``)
-    """
-    stage_dir = ctx.seed_dir / stage.name
-    config = portable(stage.config(ctx, stage_dir), ctx.seed_dir.parent.parent)
-    digest = config_hash(config, [hashes[name] for name in stage.needs])
-    hashes[stage.name] = digest
-    marker_path = stage_dir / STAGE_MARKER
-    if marker_path.exists():
-        marker = json.loads(marker_path.read_text())
-        if marker["config_hash"] == digest:
-            print(f"{label} {stage.name}: done ({marker['wall_time_s']:.0f} s), skipped", flush=True)
-            ctx.outputs[stage.name] = stage.output(stage_dir)
-            return {**marker, "skipped": True}
-    if stage_dir.exists():  # interrupted, or configured differently: start over
-        shutil.rmtree(stage_dir)
-    print(f"{label} {stage.name}: {stage.describe(ctx, stage_dir)}", flush=True)
-    start = time.perf_counter()
-    stage.run(ctx, stage_dir)
-    marker = {"config_hash": digest, "config": config, "wall_time_s": time.perf_counter() - start}
-    marker_path.write_text(json.dumps(marker, indent=2, default=str))
-    print(f"{label} {stage.name}: finished in {marker['wall_time_s']:.0f} s", flush=True)
-    ctx.outputs[stage.name] = stage.output(stage_dir)
-    return {**marker, "skipped": False}

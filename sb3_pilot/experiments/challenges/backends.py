@@ -1,0 +1,309 @@
+"""
+Execution backends of the challenge runner: the stages of a challenge as a graph (per seed, each stage depends on
+the stages it reads from), run by up to ``jobs`` processes on this machine or as Ray tasks.
+
+Every stage runs in a process of its own (``python -c ...stage_process_main``): its stdout and stderr go to
+``stage.log`` in its folder, it uses ``ctx.threads`` torch / OpenMP threads (1 unless told otherwise, so that N
+stages on N cores do not fight), it writes its marker when it succeeds and dies with the process that started
+it. A failed stage raises :class:`StageFailed` (its key and its log's tail) after the stages still running have
+been stopped.
+
+- ``local`` (``--jobs N``): a dependency-aware submit loop over :mod:`subprocess`, at most N stages at once.
+- ``ray`` (``--backend ray [--ray-address ADDR]``): every stage a Ray task declaring ``ctx.threads`` CPUs, its
+  dependencies passed as object references (the markers of the stages it reads from). The results folder must be
+  on storage every node sees (stages read each other's models and replay buffers through their paths).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import os
+import re
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cloudpickle
+
+from sb3_pilot.experiments.challenges.stages import STAGE_LOG, STAGE_MARKER, Stage, StageContext
+
+#: The backends of :func:`~sb3_pilot.experiments.challenges.run_challenge`.
+BACKENDS = ("local", "ray")
+#: Lines of a failed stage's log quoted in its error.
+TAIL_LINES = 30
+#: Seconds between two looks at the running stages.
+POLL_S = 0.2
+#: Seconds a stopped stage gets to end after SIGTERM, before SIGKILL.
+STOP_GRACE_S = 10.0
+#: What a stage's process runs (its parent's pid is its first argument).
+WORKER = "from sb3_pilot.experiments.challenges.backends import stage_process_main; stage_process_main()"
+
+
+class StageFailed(RuntimeError):
+    """
+    A stage failed: the message names it, says why and quotes the tail of its log.
+
+    :param key: ``seed_<k>/<stage>``
+    :param reason: why (exit status, node, the stages stopped with it)
+    :param log: its log file
+    :param tail: the last lines of its log
+    """
+
+    def __init__(self, key: str, reason: str, log: str, tail: str) -> None:
+        super().__init__(key, reason, log, tail)
+        self.key, self.reason, self.log, self.tail = key, reason, log, tail
+
+    def __str__(self) -> str:
+        return f"Stage {self.key} failed ({self.reason}). Last lines of {self.log}:\n{self.tail}"
+
+
+@dataclass
+class StageTask:
+    """
+    One stage of one seed to run, with all its process needs (sent to it with ``cloudpickle``).
+
+    :param key: ``seed_<k>/<stage>``
+    :param stage: the stage
+    :param ctx: its context (``ctx.outputs``: the output of every stage of the seed)
+    :param stage_dir: its folder
+    :param config: its configuration as stored (:func:`~sb3_pilot.experiments.challenges.stages.portable`)
+    :param digest: the hash of its configuration and of the stages it reads from
+    :param needs: keys of the stages it reads from
+    """
+
+    key: str
+    stage: Stage
+    ctx: StageContext
+    stage_dir: Path
+    config: dict[str, Any]
+    digest: str
+    needs: tuple[str, ...]
+
+    @property
+    def log(self) -> Path:
+        """The stage process's output."""
+        return self.stage_dir / STAGE_LOG
+
+
+#: Called when a stage starts, and when it finishes (with its marker).
+OnStart = Callable[[StageTask], None]
+OnFinish = Callable[[StageTask, dict[str, Any]], None]
+
+
+def log_tail(path: Path, lines: int = TAIL_LINES) -> str:
+    """The last non-empty ``lines`` lines of a log (progress bars' carriage returns count as line ends)."""
+    if not path.exists():
+        return f"(no log: {path} does not exist)"
+    with path.open("rb") as file:
+        file.seek(max(path.stat().st_size - 50_000, 0))
+        text = file.read().decode(errors="replace")
+    return "\n".join([line for line in re.split(r"[\r\n]+", text) if line.strip()][-lines:])
+
+
+def failure(task: StageTask, reason: str) -> StageFailed:
+    """The error of a failed stage: its key, why, and its log's tail."""
+    return StageFailed(task.key, reason, str(task.log), log_tail(task.log))
+
+
+def read_marker(task: StageTask) -> dict[str, Any]:
+    """The marker the stage's process wrote when it finished."""
+    return json.loads((task.stage_dir / STAGE_MARKER).read_text())
+
+
+def start_stage(task: StageTask) -> subprocess.Popen:
+    """
+    Start a stage's process in a fresh folder, its output to ``stage.log``, with ``ctx.threads`` threads.
+
+    :return: the process (it exits with 0 once the stage's marker is written)
+    """
+    if task.stage_dir.exists():  # interrupted, or configured differently: start over
+        shutil.rmtree(task.stage_dir)
+    task.stage_dir.mkdir(parents=True)
+    threads = str(task.ctx.threads)
+    env = {**os.environ, "OMP_NUM_THREADS": threads, "MKL_NUM_THREADS": threads, "OPENBLAS_NUM_THREADS": threads}
+    with task.log.open("wb") as log:
+        process = subprocess.Popen(
+            [sys.executable, "-c", WORKER, str(os.getpid())],
+            stdin=subprocess.PIPE,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            env=env,
+        )
+    assert process.stdin is not None
+    try:
+        process.stdin.write(cloudpickle.dumps(task))
+        process.stdin.close()
+    except BrokenPipeError:  # it died at once: its log says why
+        pass
+    return process
+
+
+def stop_stages(processes: Sequence[subprocess.Popen]) -> None:
+    """Stop stage processes: SIGTERM, then SIGKILL after :data:`STOP_GRACE_S`; they are reaped, none is left."""
+    for process in processes:
+        if process.poll() is None:
+            process.terminate()
+    deadline = time.monotonic() + STOP_GRACE_S
+    for process in processes:
+        try:
+            process.wait(max(deadline - time.monotonic(), 0.1))
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+
+def _die_with_parent(parent: int) -> None:
+    """Linux: the kernel kills this process when its parent dies (no stage outlives its runner)."""
+    if sys.platform.startswith("linux"):
+        pr_set_pdeathsig = 1
+        ctypes.CDLL(None).prctl(pr_set_pdeathsig, signal.SIGKILL)
+    if os.getppid() != parent:  # the parent died before the line above
+        os._exit(1)
+
+
+def stage_process_main() -> None:
+    """The process of one stage: read its :class:`StageTask` from stdin, run it, write its marker."""
+    _die_with_parent(int(sys.argv[1]))
+    task: StageTask = cloudpickle.loads(sys.stdin.buffer.read())
+    import torch as th
+
+    th.set_num_threads(task.ctx.threads)
+    print(f"[{task.key}] {task.stage.describe(task.ctx, task.stage_dir)}", flush=True)
+    start = time.perf_counter()
+    task.stage.run(task.ctx, task.stage_dir)
+    marker = {"config_hash": task.digest, "config": task.config, "wall_time_s": time.perf_counter() - start}
+    (task.stage_dir / STAGE_MARKER).write_text(json.dumps(marker, indent=2, default=str))
+
+
+def run_local(tasks: Sequence[StageTask], jobs: int, on_start: OnStart, on_finish: OnFinish) -> None:
+    """
+    Run stages on this machine, at most ``jobs`` at once, each once the stages it reads from have finished.
+
+    :param tasks: the stages to run, a stage after those it reads from (the others have finished before)
+    :param jobs: how many stages may run at once
+    :param on_start: called when a stage starts
+    :param on_finish: called when a stage finishes
+    :raise StageFailed: when a stage fails (the others still running are stopped first)
+    """
+    if jobs < 1:
+        raise ValueError(f"jobs must be at least 1, not {jobs}")
+    pending = list(tasks)
+    to_run = {task.key for task in tasks}
+    finished: set[str] = set()
+    running: dict[str, tuple[StageTask, subprocess.Popen]] = {}
+    try:
+        while pending or running:
+            for task in list(pending):
+                if len(running) >= jobs:
+                    break
+                if all(need in finished or need not in to_run for need in task.needs):
+                    pending.remove(task)
+                    running[task.key] = (task, start_stage(task))
+                    on_start(task)
+            if not running:
+                raise ValueError(f"Stages wait for stages that never run: {[task.key for task in pending]}")
+            time.sleep(POLL_S)
+            for key, (task, process) in list(running.items()):
+                code = process.poll()
+                if code is None:
+                    continue
+                del running[key]
+                if code != 0:
+                    stop_stages([process for _, process in running.values()])
+                    stopped = f"; stopped {', '.join(running)}" if running else ""
+                    running.clear()
+                    raise failure(task, f"exit status {code}{stopped}")
+                finished.add(key)
+                on_finish(task, read_marker(task))
+    finally:  # an error here or an interrupt (Ctrl-C): no stage process is left behind
+        stop_stages([process for _, process in running.values()])
+
+
+def _ray_stage(task: StageTask, *needs: dict[str, Any]) -> dict[str, Any]:
+    """
+    A Ray task: run a stage's process on this node and wait for it. Ray passes the markers of the stages it
+    reads from as ``needs`` (it starts the task once they exist); cancelling the task stops the process.
+
+    :return: the stage's marker
+    :raise StageFailed: also when the outputs of the stages it reads from are not on this node
+    """
+    missing = [need for need in task.needs if not task.ctx.outputs[need.split("/")[1]].exists()]
+    if missing:
+        tail = f"missing here: {[str(task.ctx.outputs[need.split('/')[1]]) for need in missing]}"
+        where = socket.gethostname()
+        reason = f"the outputs of {', '.join(missing)} are not on {where}: --root must be on storage every node sees"
+        raise StageFailed(task.key, reason, "(not started)", tail)
+    process = start_stage(task)
+    try:
+        while (code := process.poll()) is None:
+            time.sleep(POLL_S)
+    finally:
+        stop_stages([process])
+    if code != 0:
+        raise failure(task, f"exit status {code} on {socket.gethostname()}")
+    return read_marker(task)
+
+
+def run_ray(tasks: Sequence[StageTask], address: str | None, on_start: OnStart, on_finish: OnFinish) -> None:
+    """
+    Run stages as Ray tasks: each declares ``ctx.threads`` CPUs and gets the stages it reads from as object
+    references. Without ``address`` and without a running Ray, ``ray.init()`` starts a local cluster (this
+    machine's cores) and shuts it down afterwards; an initialised Ray is used as it is.
+
+    :param tasks: the stages to run, a stage after those it reads from (the others have finished before)
+    :param address: a Ray cluster's address (``ray.init(address=...)``), e.g. ``auto`` or ``ray://HEAD:10001``
+    :param on_start: called when a stage is seen running (its ``stage.log`` exists)
+    :param on_finish: called when a stage finishes
+    :raise StageFailed: when a stage fails (the other tasks are cancelled first, which stops their processes)
+    """
+    try:
+        import ray
+    except ImportError as error:
+        raise ImportError("--backend ray needs Ray: pip install 'sb3-pilot[ray]' (or pip install ray)") from error
+    started_here = not ray.is_initialized()
+    if started_here:
+        local = {"include_dashboard": False} if address is None else {}
+        ray.init(address=address, log_to_driver=False, **local)
+    remote = ray.remote(_ray_stage)
+    refs: dict[str, Any] = {}
+    for task in tasks:
+        dependencies = [refs[need] for need in task.needs if need in refs]
+        refs[task.key] = remote.options(name=task.key, num_cpus=task.ctx.threads).remote(task, *dependencies)
+    by_ref = {ref: task for task, ref in zip(tasks, refs.values(), strict=True)}
+    waiting, seen = list(refs.values()), set()
+    try:
+        while waiting:
+            done, waiting = ray.wait(waiting, num_returns=1, timeout=1.0)
+            for ref in waiting:  # a task has started once it has opened its log (the folder was cleared before)
+                if by_ref[ref].key not in seen and by_ref[ref].log.exists():
+                    seen.add(by_ref[ref].key)
+                    on_start(by_ref[ref])
+            for ref in done:
+                task = by_ref[ref]
+                try:
+                    marker = ray.get(ref)
+                except Exception as error:
+                    cause = getattr(error, "cause", error)
+                    stopped = f"; cancelled {', '.join(by_ref[ref].key for ref in waiting)}" if waiting else ""
+                    if isinstance(cause, StageFailed):
+                        raise StageFailed(cause.key, f"{cause.reason}{stopped}", cause.log, cause.tail) from None
+                    raise failure(task, f"{type(error).__name__} in Ray{stopped}: {error}") from error
+                if task.key not in seen:
+                    seen.add(task.key)
+                    on_start(task)
+                on_finish(task, marker)
+    finally:  # a failure or an interrupt: cancel the rest (a running task stops its process) and wait for them
+        for ref in waiting:
+            ray.cancel(ref)
+        if waiting:
+            ray.wait(waiting, num_returns=len(waiting), timeout=3 * STOP_GRACE_S)
+        if started_here:
+            ray.shutdown()

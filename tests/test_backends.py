@@ -1,0 +1,205 @@
+"""
+The challenge runner's execution backends: the stage graph, ``--jobs N`` on this machine, Ray, failed stages.
+
+The tiny stages here record when they ran; their processes import this module (``PYTHONPATH`` holds ``tests/``).
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+import torch as th
+
+from sb3_pilot.experiments.challenges import CHALLENGES, Challenge, StageFailed, run_challenge, stage_graph
+from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
+from sb3_pilot.experiments.challenges.stages import STAGE_LOG, STAGE_MARKER
+
+TESTS = Path(__file__).parent
+
+
+@dataclass(frozen=True)
+class Sleep:
+    """
+    A tiny stage: writes its pid, prints ``lines`` lines, sleeps, and writes when it ran and with how many threads.
+
+    :param wait_for: a stage of the same seed whose pid file it waits for before failing or sleeping
+    :param fail: raise instead of sleeping
+    """
+
+    name: str
+    seconds: float
+    needs: tuple[str, ...] = ()
+    wait_for: str | None = None
+    fail: bool = False
+    lines: int = 3
+    method = None
+
+    def output(self, stage_dir: Path) -> Path:
+        return stage_dir / "times.json"
+
+    def config(self, ctx: Any, stage_dir: Path) -> dict[str, Any]:
+        return {"seconds": self.seconds, "seed": ctx.seed, "needs": [str(ctx.outputs[need]) for need in self.needs]}
+
+    def describe(self, ctx: Any, stage_dir: Path) -> str:
+        return f"sleep {self.seconds} s"
+
+    def run(self, ctx: Any, stage_dir: Path) -> None:
+        start = time.time()
+        (stage_dir / "pid").write_text(str(os.getpid()))
+        for need in self.needs:
+            assert ctx.outputs[need].exists(), need
+        if self.wait_for is not None:
+            other = ctx.seed_dir / self.wait_for / "pid"
+            while not other.exists():
+                time.sleep(0.05)
+        for line in range(self.lines):
+            print(f"{self.name} line {line}", flush=True)
+        if self.fail:
+            raise RuntimeError(f"{self.name} failed on purpose")
+        time.sleep(self.seconds)
+        times = {"start": start, "end": time.time(), "threads": th.get_num_threads(), "omp": os.environ["OMP_NUM_THREADS"]}
+        self.output(stage_dir).write_text(json.dumps(times))
+
+
+def tiny(*stages: Sleep) -> Challenge:
+    return Challenge("tiny", "tiny stages", "none", stages, steps={})
+
+
+@pytest.fixture
+def importable(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The stage processes (and Ray's workers) can import this module."""
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(TESTS), os.environ.get("PYTHONPATH")])))
+
+
+def _times(run_dir: Path, key: str) -> dict[str, Any]:
+    return json.loads((run_dir / "models" / key / "times.json").read_text())
+
+
+def _summary_without_times(path: Path) -> dict[str, Any]:
+    summary = json.loads(path.read_text())
+    summary.pop("wall_time_s")
+    for stage in summary["stages"].values():
+        stage.pop("wall_time_s")
+    return summary
+
+
+def _dead(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    return False
+
+
+def test_stage_graphs() -> None:
+    """Per seed: source -> (distillation ->) target; baselines and other seeds' stages depend on nothing."""
+    expected = {
+        "high-dim-action": {"source": (), "pilot": ("source",), "her": ()},
+        "vec-to-image": {"source": (), "distill": ("source",), "pilot": ("distill",), "her": ()},
+        "complex-morph": {"source": (), "distill": ("source",), "pilot": ("distill",), "her": ()},
+        "zero-shot-ant-maze": {
+            "maze": (),
+            "distill": ("maze",),
+            "controller": (),
+            "pilot": ("distill", "controller"),
+            "her": (),
+        },
+    }
+    for name, challenge in CHALLENGES.items():
+        graph = stage_graph(challenge, [0, 1])
+        keys = list(graph)
+        for key, needs in graph.items():
+            assert all(keys.index(need) < keys.index(key) for need in needs), (name, key)  # a stage after its needs
+            assert all(need.split("/")[0] == key.split("/")[0] for need in needs)  # within its seed
+        if name in expected:  # challenges added later only need the order above
+            assert graph == {
+                f"seed_{seed}/{stage}": tuple(f"seed_{seed}/{need}" for need in needs)
+                for seed in (0, 1)
+                for stage, needs in expected[name].items()
+            }
+    with pytest.raises(ValueError, match=r"reads from \['b'\], which are not before it"):
+        stage_graph(tiny(Sleep("a", 0, needs=("b",)), Sleep("b", 0)), [0])
+
+
+def test_jobs_run_independent_stages_together(tmp_path: Path, importable: None, capsys: pytest.CaptureFixture[str]) -> None:
+    """--jobs 2 starts a stage and an independent one together, a dependent one after its source; --jobs 1 one by one."""
+    challenge = tiny(Sleep("source", 2.0), Sleep("target", 0.1, needs=("source",)), Sleep("baseline", 2.0))
+    run_challenge(challenge, seeds=[0], root=tmp_path / "two", jobs=2)
+    out = capsys.readouterr().out
+    assert "running: seed_0/source, seed_0/baseline]" in out
+    run_dir = tmp_path / "two" / "tiny"
+    source, target, baseline = (_times(run_dir, f"seed_0/{name}") for name in ("source", "target", "baseline"))
+    assert source["start"] < baseline["end"] and baseline["start"] < source["end"]  # together
+    assert target["start"] >= source["end"]
+    for times in (source, target, baseline):  # each process got the threads it was given
+        assert times["threads"] == 1 and times["omp"] == "1"
+    assert "source line 2" in (run_dir / "models" / "seed_0" / "source" / STAGE_LOG).read_text()
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert list(summary["stages"]) == ["seed_0/source", "seed_0/target", "seed_0/baseline"]
+
+    run_challenge(challenge, seeds=[0], root=tmp_path / "two", jobs=2)  # finished: every stage skipped
+    assert capsys.readouterr().out.count("skipped") == 3
+
+    run_challenge(challenge, seeds=[0], root=tmp_path / "one", jobs=1)
+    run_dir = tmp_path / "one" / "tiny"
+    times = sorted((_times(run_dir, f"seed_0/{name}") for name in ("source", "target", "baseline")), key=lambda t: t["start"])
+    assert all(first["end"] <= second["start"] for first, second in itertools.pairwise(times))
+    assert _summary_without_times(run_dir / "summary.json") == _summary_without_times(tmp_path / "two/tiny/summary.json")
+
+
+def test_failed_stage_stops_the_run(tmp_path: Path, importable: None, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The run stops with the failed stage's name and its log's tail; the stage running beside it is stopped."""
+    challenge = tiny(Sleep("slow", 300.0), Sleep("boom", 0.0, wait_for="slow", fail=True, lines=40))
+    monkeypatch.setitem(CHALLENGES, "tiny", challenge)
+    start = time.monotonic()
+    with pytest.raises(SystemExit) as exit_info:
+        challenges_main(["tiny", "--root", str(tmp_path), "--jobs", "2"])
+    message = str(exit_info.value.code)
+    assert time.monotonic() - start < 120
+    assert message.startswith("tiny: Stage seed_0/boom failed (exit status 1; stopped seed_0/slow)")
+    assert "RuntimeError: boom failed on purpose" in message and "boom line 39" in message
+    assert "boom line 0\n" not in message  # the tail, not the whole log
+    seed_dir = tmp_path / "tiny" / "models" / "seed_0"
+    assert _dead(int((seed_dir / "slow" / "pid").read_text()))
+    assert not (seed_dir / "slow" / STAGE_MARKER).exists() and not (seed_dir / "boom" / STAGE_MARKER).exists()
+
+
+def test_ray_backend_matches_serial(tmp_path: Path, importable: None, capsys: pytest.CaptureFixture[str]) -> None:
+    """
+    High-Dim-Action at the smoke budget, serially, with --jobs 2 and on a local Ray cluster (2 CPUs): one summary
+    (but wall times). On Ray, a failed stage stops the run with its log's tail and the other task is cancelled.
+    """
+    ray = pytest.importorskip("ray", reason="Ray is not installed (pip install -e .[ray]): the Ray backend is untested")
+    serial = run_challenge("high-dim-action", "smoke", seeds=[0], root=tmp_path / "serial")
+    expected = _summary_without_times(tmp_path / "serial" / "high-dim-action" / "summary.json")
+    run_challenge("high-dim-action", "smoke", seeds=[0], root=tmp_path / "jobs", jobs=2)
+    assert _summary_without_times(tmp_path / "jobs" / "high-dim-action" / "summary.json") == expected
+
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        capsys.readouterr()
+        on_ray = run_challenge("high-dim-action", "smoke", seeds=[0], root=tmp_path / "ray", backend="ray")
+        out = capsys.readouterr().out
+        assert "Ray (local)" in out and "seed 0 her: finished" in out
+        assert on_ray["methods"] == serial["methods"]
+        assert _summary_without_times(tmp_path / "ray" / "high-dim-action" / "summary.json") == expected
+
+        challenge = tiny(Sleep("slow", 300.0), Sleep("boom", 0.0, wait_for="slow", fail=True, lines=40))
+        match = r"Stage seed_0/boom failed \(exit status 1 on .*; cancelled seed_0/slow\)"
+        with pytest.raises(StageFailed, match=match) as error_info:
+            run_challenge(challenge, seeds=[0], root=tmp_path / "fail", backend="ray")
+        assert "boom line 39" in str(error_info.value) and "RuntimeError: boom failed on purpose" in str(error_info.value)
+    finally:
+        ray.shutdown()
+    slow_pid = int((tmp_path / "fail" / "tiny" / "models" / "seed_0" / "slow" / "pid").read_text())
+    deadline = time.monotonic() + 30
+    while not _dead(slow_pid) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert _dead(slow_pid)
