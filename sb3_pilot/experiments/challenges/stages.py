@@ -30,7 +30,7 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_pilot.distill import GoalPlanner, distill_goal_planner
-from sb3_pilot.experiments.zoo import hyperparams_dir
+from sb3_pilot.experiments.zoo import hyperparams_dir, register
 from sb3_pilot.transfer import LandmarkGuidance
 from sb3_pilot.udpo import UDPO
 
@@ -128,6 +128,7 @@ def load_zoo_model(model_path: Path, env: DummyVecEnv | None = None) -> tuple[Ba
     """
     from rl_zoo3 import ALGOS
 
+    register()  # ``udpo`` among the zoo's algorithms, in whichever process the stage runs
     algo = model_path.parent.parent.name
     stats = model_path.parent / model_path.stem / "vecnormalize.pkl"
     vec_normalize = None
