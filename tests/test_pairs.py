@@ -85,8 +85,9 @@ def test_verdict() -> None:
         return {"runs": [{"success_rate": rates}], "mean": {"timesteps": steps, "success_rate": rates}}
 
     her = result([0.0, 0.0, 0.2, 0.5])
-    assert verdict(result([0.0, 0.6, 1.0, 1.0]), her).startswith("confirmed: HER's final success (0.50) at 0.50x")
-    assert verdict(result([0.0, 0.0, 0.6, 1.0]), her).startswith("not at this budget: HER's final success")
+    assert verdict(result([0.0, 0.6, 1.0, 1.0]), her) == "confirmed: 0.50 success (HER's final: 0.50) at 0.50x HER's steps"
+    later = verdict(result([0.0, 0.0, 0.6, 1.0]), her)
+    assert later.startswith("not at this budget: 0.50 success (HER's final: 0.50) at 0.75x")
     assert verdict(result([0.0, 0.0, 0.0, 0.1]), her).startswith("refuted")
     assert verdict(result([0.0] * 4), result([0.0] * 4)) == "not at this budget (neither learned)"
     assert verdict(result([0.0, 0.5, 1.0, 1.0]), result([0.0] * 4)).startswith("confirmed")

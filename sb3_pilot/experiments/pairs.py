@@ -32,6 +32,7 @@ import numpy as np
 
 from sb3_pilot.experiments.challenges.definitions import CHALLENGES, HER
 from sb3_pilot.experiments.challenges.stages import load_zoo_model
+from sb3_pilot.experiments.zoo import register
 
 FINAL_EVAL = "final_eval.json"
 
@@ -44,6 +45,7 @@ def evaluate_final(run_dir: Path, episodes: int = 10) -> dict[str, Any]:
     :param episodes: episodes per model
     :return: ``{method: {"seed_<k>": {"success": float, "distance": float}}}``, also written to ``final_eval.json``
     """
+    register()  # the zoo's ALGOS gets "udpo"
     summary = json.loads((run_dir / "summary.json").read_text())
     challenge = CHALLENGES[summary["challenge"]]
     path = run_dir / FINAL_EVAL
@@ -95,9 +97,10 @@ def verdict(pilot: dict[str, Any], her: dict[str, Any]) -> str:
     )
     if reached is not None:
         ratio = reached / her_steps
+        reaches = f"{level:.2f} success (HER's final: {her_final:.2f}) at {ratio:.2f}x HER's steps"
         if ratio <= 0.5:
-            return f"confirmed: HER's final success ({her_final:.2f}) at {ratio:.2f}x HER's steps"
-        return f"not at this budget: HER's final success ({her_final:.2f}) at {ratio:.2f}x HER's steps (goal <= 0.5x)"
+            return f"confirmed: {reaches}"
+        return f"not at this budget: {reaches} (goal <= 0.5x)"
     if her_final - pilot_final > 0.2:
         return f"refuted at this budget: final success {pilot_final:.2f} vs HER's {her_final:.2f}"
     return f"not at this budget: final success {pilot_final:.2f} vs HER's {her_final:.2f}, never reaches it"
