@@ -1,12 +1,23 @@
 """
-The paper's four transfer challenges (section 5, "Designed transferring challenges") as stage lists, and the
-budgets they run at.
+The paper's transfer challenges (section 5, "Designed transferring challenges") as stage lists, one challenge per
+transfer pair the paper runs (six), and the budgets they run at:
+
+- High-Dim-Action: ``high-dim-action`` (Fetch-Reach -> Fetch-Reach-High-Dim) and ``high-dim-action-push``
+  (Fetch-Push -> Fetch-Push-High-Dim): the source UDPO's state planner, frozen, in a target UDPO;
+- Vec-to-Image: ``vec-to-image`` (Fetch-Reach -> Fetch-Reach-Image) and ``vec-to-image-reacher`` (Reacher ->
+  Reacher-Image): a distilled goal planner's bonus for a pixel-only SAC + HER (:class:`PixelGoalSACPolicy`);
+- ``complex-morph`` (Point -> Ant locomotion) and ``zero-shot-ant-maze`` (2D-Maze -> Ant-Maze, zero-shot).
+
+Every bonus challenge runs HER + PILoT twice: with the paper's similarity (``goal_cosine``, cosine of the goal
+vectors, stage ``pilot``) and with this package's default (``displacement_cosine``, cosine of the achieved and the
+planned moves, stage ``pilot_disp``), beside SAC + HER from scratch (stage ``her``).
 
 Step counts: the paper gives none (its figures only show curves), so every count here is our choice. ``paper``
 uses the ``n_timesteps`` of the paper-value YAML files (``hyperparams/*.yml``, themselves a choice, see their
 headers); ``cpu`` is sized for one long session on 2 cores (measured per seed, 1 torch thread: High-Dim-Action about
-3 min, Vec-to-Image about 17 min, Complex-Morph and Zero-shot Ant-Maze about 27 min each); ``smoke`` only checks that
-the pipeline runs.
+3 min, Vec-to-Image about 17 min, Complex-Morph and Zero-shot Ant-Maze about 27 min each); ``demo`` is ``make
+demo``'s (High-Dim-Action only, see :mod:`sb3_pilot.experiments.demo`); ``smoke`` only checks that the pipeline
+runs.
 """
 
 from __future__ import annotations
@@ -28,6 +39,10 @@ BUDGETS: dict[str, Budget] = {
     ),
     "cpu": Budget(
         "cpu", conf_dir="cpu/", n_evals=10, eval_episodes=10, distill={"n_samples": 50_000, "gradient_steps": 5_000}
+    ),
+    # make demo: the cpu presets, an evaluation every tenth of a stage (High-Dim-Action's steps["demo"])
+    "demo": Budget(
+        "demo", conf_dir="cpu/", n_evals=10, eval_episodes=10, distill={"n_samples": 50_000, "gradient_steps": 5_000}
     ),
     "paper": Budget(
         "paper",
@@ -58,14 +73,26 @@ RL_ZOO_FETCH: dict[str, dict[str, Any]] = {
 #: stage of the High-Dim-Action challenge (source, transfer target and SAC + HER baseline alike): the zoo's
 #: state-planner transfer hook carries the source's statistics into the target, frozen with the planner.
 RL_ZOO_FETCH_NORMALIZED: dict[str, dict[str, Any]] = {**RL_ZOO_FETCH, "*": {**RL_ZOO_FETCH["*"], "normalize": True}}
+#: High-Dim-Action on Push: :data:`RL_ZOO_FETCH_NORMALIZED` with SB3's default 256x256 networks (RL-Zoo's own
+#: FetchPush settings use 512x512x512; 64x64 is its FetchReach's) and its 1000-step warm-up (8 envs x 50 steps
+#: end their first episodes at 400 steps).
+HIGH_DIM_PUSH_FAST: dict[str, dict[str, Any]] = {
+    **RL_ZOO_FETCH_NORMALIZED,
+    "*": {**RL_ZOO_FETCH_NORMALIZED["*"], "policy_kwargs": {"net_arch": [256, 256]}},
+}
+#: Encoder of the pixel-only agents at the smoke and cpu budgets, both methods alike (:class:`PixelGoalExtractor`'s
+#: ``encoder``): chosen by success per wall-clock minute at the cpu budget (zoo_runs/pairs_README_section.md).
+IMAGE_ENCODER = "nature"
 #: Vec-to-Image's settings: :data:`RL_ZOO_FETCH` with ``normalize: true`` for the UDPO source only (it learns
 #: FetchReach as in High-Dim-Action, and distillation maps the teacher's normalised plans back to raw goals, which is
 #: what the bonus reads), and minibatches of 64 for the image agents (PILoT and baseline alike): with 256, SAC's CNN
-#: updates ran at about 4 steps/s on one core here, 20k steps per method would take hours.
+#: updates ran at about 4 steps/s on one core here, 20k steps per method would take hours. The image agents' policy
+#: is the YAML's ``PixelGoalSACPolicy`` (image and desired goal only, one encoder trained by the critic); the
+#: encoder is named here so that every command line records it.
 VEC_TO_IMAGE_FAST: dict[str, dict[str, Any]] = {
     **RL_ZOO_FETCH,
     "udpo": {**RL_ZOO_FETCH["udpo"], "normalize": True},
-    "sac": {"batch_size": 64},
+    "sac": {"batch_size": 64, "policy_kwargs": {"features_extractor_kwargs": {"encoder": IMAGE_ENCODER}}},
 }
 
 
@@ -90,12 +117,15 @@ class Challenge:
     fast_hyperparams: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
-def _bonus(planner_stage: str) -> Any:
-    """``-params`` of a HER + PILoT stage: the bonus wrapper on the planner distilled by ``planner_stage``."""
+def _bonus(planner_stage: str, similarity: str) -> Any:
+    """
+    ``-params`` of a HER + PILoT stage: the bonus wrapper on the planner distilled by ``planner_stage``, with
+    ``similarity`` (:data:`~sb3_pilot.transfer.bonus.SIMILARITIES`) written out even where it is the default.
+    """
 
     def params(outputs: dict[str, Path]) -> dict[str, Any]:
-        wrapper = {"sb3_pilot.PilotBonusWrapper": {"planner": str(outputs[planner_stage]), "beta": 1.0}}
-        return {"env_wrapper": [wrapper]}
+        kwargs = {"planner": str(outputs[planner_stage]), "beta": 1.0, "similarity": similarity}
+        return {"env_wrapper": [{"sb3_pilot.PilotBonusWrapper": kwargs}]}
 
     return params
 
@@ -108,7 +138,57 @@ def _state_planner_transfer(outputs: dict[str, Path]) -> dict[str, Any]:
     }
 
 
-HER, PILOT_BONUS = "SAC+HER (scratch)", "HER+PILoT (bonus)"
+HER, PLANNER_TRANSFER = "SAC+HER (scratch)", "UDPO+PILoT (planner transfer)"
+#: The two HER + PILoT methods of a bonus challenge: the paper's similarity and this package's default.
+PILOT_PAPER, PILOT_DISPLACEMENT = "HER+PILoT (bonus, paper: goal_cosine)", "HER+PILoT (bonus, displacement_cosine)"
+
+
+def _high_dim_stages(source_env: str, target_env: str) -> tuple[Stage, ...]:
+    """Source UDPO -> its state planner, frozen, in a target UDPO; SAC + HER from scratch on the target."""
+    return (
+        ZooTrain("source", "udpo", source_env, "udpo.yml"),
+        ZooTrain(
+            "pilot",
+            "udpo",
+            target_env,
+            "udpo.yml",
+            params=_state_planner_transfer,
+            needs=("source",),
+            method=PLANNER_TRANSFER,
+        ),
+        ZooTrain("her", "sac", target_env, "sac.yml", method=HER),
+    )
+
+
+def _bonus_stages(source_env: str, target_env: str) -> tuple[Stage, ...]:
+    """
+    Source UDPO -> distilled goal planner -> HER + PILoT with the paper's similarity (``pilot``) and with the
+    displacement one (``pilot_disp``); SAC + HER from scratch (``her``). Same target YAML values for all three.
+    """
+    return (
+        ZooTrain("source", "udpo", source_env, "udpo.yml", save_replay_buffer=True),
+        Distill("distill", "source"),
+        ZooTrain(
+            "pilot",
+            "sac",
+            target_env,
+            "sac_pilot.yml",
+            params=_bonus("distill", "goal_cosine"),
+            needs=("distill",),
+            method=PILOT_PAPER,
+        ),
+        ZooTrain(
+            "pilot_disp",
+            "sac",
+            target_env,
+            "sac_pilot.yml",
+            params=_bonus("distill", "displacement_cosine"),
+            needs=("distill",),
+            method=PILOT_DISPLACEMENT,
+        ),
+        ZooTrain("her", "sac", target_env, "sac.yml", method=HER),
+    )
+
 
 CHALLENGES: dict[str, Challenge] = {
     challenge.name: challenge
@@ -117,46 +197,46 @@ CHALLENGES: dict[str, Challenge] = {
             "high-dim-action",
             "UDPO on Fetch-Reach -> its state planner, frozen, in a UDPO on Fetch-Reach-High-Dim, vs SAC+HER",
             "Pilot/FetchReachHighDim-v0",
-            (
-                ZooTrain("source", "udpo", "Pilot/FetchReach-v0", "udpo.yml"),
-                ZooTrain(
-                    "pilot",
-                    "udpo",
-                    "Pilot/FetchReachHighDim-v0",
-                    "udpo.yml",
-                    params=_state_planner_transfer,
-                    needs=("source",),
-                    method="UDPO+PILoT (planner transfer)",
-                ),
-                ZooTrain("her", "sac", "Pilot/FetchReachHighDim-v0", "sac.yml", method=HER),
-            ),
+            _high_dim_stages("Pilot/FetchReach-v0", "Pilot/FetchReachHighDim-v0"),
             steps={
                 "smoke": {"source": 400, "pilot": 300, "her": 300},
+                "demo": {"source": 8000, "pilot": 4000, "her": 4000},
                 "cpu": {"source": 8000, "pilot": 8000, "her": 8000},
             },
             fast_hyperparams=RL_ZOO_FETCH_NORMALIZED,
         ),
         Challenge(
-            "vec-to-image",
-            "UDPO on Fetch-Reach (vector) -> distilled goal planner -> HER + bonus on Fetch-Reach-Image, vs SAC+HER",
-            "Pilot/FetchReachImage-v0",
-            (
-                ZooTrain("source", "udpo", "Pilot/FetchReach-v0", "udpo.yml", save_replay_buffer=True),
-                Distill("distill", "source"),
-                ZooTrain(
-                    "pilot",
-                    "sac",
-                    "Pilot/FetchReachImage-v0",
-                    "sac_pilot.yml",
-                    params=_bonus("distill"),
-                    needs=("distill",),
-                    method=PILOT_BONUS,
-                ),
-                ZooTrain("her", "sac", "Pilot/FetchReachImage-v0", "sac.yml", method=HER),
-            ),
+            "high-dim-action-push",
+            "UDPO on Fetch-Push -> its state planner, frozen, in a UDPO on Fetch-Push-High-Dim, vs SAC+HER",
+            "Pilot/FetchPushHighDim-v0",
+            _high_dim_stages("Pilot/FetchPush-v0", "Pilot/FetchPushHighDim-v0"),
             steps={
-                "smoke": {"source": 300, "pilot": 200, "her": 200},
-                "cpu": {"source": 8000, "pilot": 8000, "her": 8000},
+                "smoke": {"source": 1200, "pilot": 1200, "her": 1200},
+                "cpu": {"source": 100_000, "pilot": 100_000, "her": 100_000},
+            },
+            fast_hyperparams=HIGH_DIM_PUSH_FAST,
+        ),
+        Challenge(
+            "vec-to-image",
+            "UDPO on Fetch-Reach (vector) -> distilled goal planner -> HER + bonus on Fetch-Reach-Image (pixels and "
+            "desired goal only), vs SAC+HER",
+            "Pilot/FetchReachImage-v0",
+            _bonus_stages("Pilot/FetchReach-v0", "Pilot/FetchReachImage-v0"),
+            steps={
+                "smoke": {"source": 300, "pilot": 200, "pilot_disp": 200, "her": 200},
+                "cpu": {"source": 8000, "pilot": 8000, "pilot_disp": 8000, "her": 8000},
+            },
+            fast_hyperparams=VEC_TO_IMAGE_FAST,
+        ),
+        Challenge(
+            "vec-to-image-reacher",
+            "UDPO on Reacher (vector) -> distilled goal planner -> HER + bonus on Reacher-Image (pixels and desired "
+            "goal only), vs SAC+HER",
+            "Pilot/ReacherImage-v0",
+            _bonus_stages("Pilot/Reacher-v0", "Pilot/ReacherImage-v0"),
+            steps={
+                "smoke": {"source": 800, "pilot": 400, "pilot_disp": 400, "her": 400},
+                "cpu": {"source": 20_000, "pilot": 8000, "pilot_disp": 8000, "her": 8000},
             },
             fast_hyperparams=VEC_TO_IMAGE_FAST,
         ),
@@ -164,23 +244,10 @@ CHALLENGES: dict[str, Challenge] = {
             "complex-morph",
             "UDPO on Point-Locomotion -> distilled goal planner -> HER + bonus on Ant-Locomotion, vs SAC+HER",
             "Pilot/AntLocomotion-v0",
-            (
-                ZooTrain("source", "udpo", "Pilot/PointLocomotion-v0", "udpo.yml", save_replay_buffer=True),
-                Distill("distill", "source"),
-                ZooTrain(
-                    "pilot",
-                    "sac",
-                    "Pilot/AntLocomotion-v0",
-                    "sac_pilot.yml",
-                    params=_bonus("distill"),
-                    needs=("distill",),
-                    method=PILOT_BONUS,
-                ),
-                ZooTrain("her", "sac", "Pilot/AntLocomotion-v0", "sac.yml", method=HER),
-            ),
+            _bonus_stages("Pilot/PointLocomotion-v0", "Pilot/AntLocomotion-v0"),
             steps={
-                "smoke": {"source": 2100, "pilot": 500, "her": 500},
-                "cpu": {"source": 50_000, "pilot": 200_000, "her": 200_000},
+                "smoke": {"source": 2100, "pilot": 500, "pilot_disp": 500, "her": 500},
+                "cpu": {"source": 50_000, "pilot": 200_000, "pilot_disp": 200_000, "her": 200_000},
             },
         ),
         Challenge(

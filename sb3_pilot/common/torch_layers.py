@@ -1,0 +1,178 @@
+"""
+Pixel-only agents for the image tasks (``Pilot/FetchReachImage-v0``, ``Pilot/ReacherImage-v0``): a features
+extractor that reads the image and the desired goal, never the achieved goal, and a SAC policy that trains it as
+the paper does.
+
+In the paper (section 5 and its appendix), the image *is* the observation; ``achieved_goal`` is there for HER's
+relabelling and the reward only. SB3's ``MultiInputPolicy`` (``CombinedExtractor``) would feed every key of the
+Dict observation to the networks, ``achieved_goal`` included, which is all the state a reaching task needs.
+
+The paper's encoder: 4 conv layers 3x3 with 32 channels and strides 2, 1, 1, 1, then a 50-unit linear layer and
+LayerNorm, shared by actor and critic and trained by the critic's loss only (SAC-AE / DrQ style). SB3's own
+``share_features_extractor=True`` does the opposite: the shared extractor is trained by the *actor's* loss only
+(``ContinuousCritic.forward`` computes features under ``set_grad_enabled(False)`` and ``SACPolicy._build`` leaves the
+extractor out of the critic's optimizer). :class:`PixelGoalSACPolicy` therefore builds the sharing itself.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.policies import ContinuousCritic
+from stable_baselines3.common.preprocessing import get_flattened_obs_dim, is_image_space
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
+from stable_baselines3.common.type_aliases import PyTorchObs
+from stable_baselines3.sac.policies import Actor, SACPolicy
+from torch import nn
+
+#: Encoders of :class:`PixelGoalExtractor`.
+ENCODERS = ("nature", "paper")
+#: Keys of the Dict observation the extractor reads; ``achieved_goal`` is never read.
+IMAGE_KEY, GOAL_KEY = "observation", "desired_goal"
+
+
+def nature_cnn(n_channels: int) -> nn.Sequential:
+    """SB3's ``NatureCNN`` convolutions (Mnih et al. 2015): 8x8/4 32, 4x4/2 64, 3x3/1 64, flattened."""
+    return nn.Sequential(
+        nn.Conv2d(n_channels, 32, kernel_size=8, stride=4),
+        nn.ReLU(),
+        nn.Conv2d(32, 64, kernel_size=4, stride=2),
+        nn.ReLU(),
+        nn.Conv2d(64, 64, kernel_size=3, stride=1),
+        nn.ReLU(),
+        nn.Flatten(),
+    )
+
+
+def paper_cnn(n_channels: int) -> nn.Sequential:
+    """The paper's convolutions (appendix, image encoder): 4 layers 3x3 with 32 channels, strides 2, 1, 1, 1."""
+    layers: list[nn.Module] = []
+    for stride in (2, 1, 1, 1):
+        layers += [nn.Conv2d(n_channels, 32, kernel_size=3, stride=stride), nn.ReLU()]
+        n_channels = 32
+    return nn.Sequential(*layers, nn.Flatten())
+
+
+class PixelGoalExtractor(BaseFeaturesExtractor):
+    """
+    Features of a goal-conditioned image observation: a CNN on ``observation`` (the image) concatenated with
+    ``desired_goal`` as it is. ``achieved_goal`` (and any other key) is ignored.
+
+    - ``encoder="nature"``: SB3's NatureCNN convolutions, then a linear layer of ``image_features`` units and a ReLU
+      (as SB3's ``NatureCNN``; 256 units by default, as ``CombinedExtractor``'s ``cnn_output_dim``).
+    - ``encoder="paper"``: the paper's convolutions, then a linear layer of ``image_features`` units (the paper's 50)
+      and LayerNorm.
+
+    From a YAML: ``policy_kwargs: "dict(features_extractor_kwargs=dict(encoder='paper'))"``.
+
+    :param observation_space: Dict with an image ``observation`` (channel-first, as SB3 transposes it) and
+        ``desired_goal``
+    :param encoder: ``"nature"`` or ``"paper"``
+    :param image_features: size of the image embedding (None: 256 for ``nature``, 50 for ``paper``)
+    :param normalized_image: whether images are already in [0, 1] (SB3's ``normalize_images=False``)
+    """
+
+    def __init__(
+        self,
+        observation_space: spaces.Dict,
+        encoder: str = "nature",
+        image_features: int | None = None,
+        normalized_image: bool = False,
+    ):
+        if encoder not in ENCODERS:
+            raise ValueError(f"Unknown encoder {encoder!r}, choose one of {ENCODERS}.")
+        if not isinstance(observation_space, spaces.Dict) or {IMAGE_KEY, GOAL_KEY} - set(observation_space.spaces):
+            raise ValueError(f"PixelGoalExtractor needs a Dict observation space with {IMAGE_KEY!r} and {GOAL_KEY!r}.")
+        image_space = observation_space[IMAGE_KEY]
+        if not is_image_space(image_space, check_channels=False, normalized_image=normalized_image):
+            raise ValueError(f"{IMAGE_KEY!r} must be an image space (channel-first after SB3's transpose): {image_space}")
+        image_features = image_features or (256 if encoder == "nature" else 50)
+        goal_dim = get_flattened_obs_dim(observation_space[GOAL_KEY])
+        super().__init__(observation_space, features_dim=image_features + goal_dim)
+        self.encoder = encoder
+        assert isinstance(image_space, spaces.Box)
+        n_channels = image_space.shape[0]
+        self.cnn = (nature_cnn if encoder == "nature" else paper_cnn)(n_channels)
+        with th.no_grad():
+            n_flatten = self.cnn(th.as_tensor(image_space.sample()[None]).float()).shape[1]
+        head: list[nn.Module] = [nn.Linear(n_flatten, image_features)]
+        head.append(nn.ReLU() if encoder == "nature" else nn.LayerNorm(image_features))
+        self.head = nn.Sequential(*head)
+
+    def forward(self, observations: dict[str, th.Tensor]) -> th.Tensor:  # type: ignore[override]
+        image = self.head(self.cnn(observations[IMAGE_KEY]))
+        return th.cat([image, th.flatten(observations[GOAL_KEY], start_dim=1)], dim=1)
+
+
+class _DetachedFeaturesActor(Actor):
+    """SAC actor whose (shared) features extractor gets no gradient: its features are computed without one."""
+
+    def extract_features(self, obs: PyTorchObs, features_extractor: BaseFeaturesExtractor) -> th.Tensor:  # type: ignore[override]
+        with th.no_grad():
+            return super().extract_features(obs, features_extractor)
+
+
+class _EncoderTrainingCritic(ContinuousCritic):
+    """
+    Critic that trains the features extractor it shares with the actor, from the critic's loss only.
+
+    SB3's ``SAC.train`` calls the critic twice: on the replay actions for the critic's loss, then on the actor's
+    actions (which require a gradient) for the actor's loss. Features get a gradient in the first call only, so
+    the actor's loss, which the actor's optimizer minimises, never reaches the encoder (and its backward pass skips
+    it, as DrQ's ``detach`` does).
+    """
+
+    def forward(self, obs: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, ...]:
+        with th.set_grad_enabled(th.is_grad_enabled() and not actions.requires_grad):
+            features = self.extract_features(obs, self.features_extractor)
+        qvalue_input = th.cat([features, actions], dim=1)
+        return tuple(q_net(qvalue_input) for q_net in self.q_networks)
+
+
+class PixelGoalSACPolicy(SACPolicy):
+    """
+    SAC policy for the image tasks, the paper's way: one :class:`PixelGoalExtractor` (by default) shared by the actor
+    and the critic, trained by the critic's loss only (it is in the critic's optimizer, not the actor's; the actor
+    reads its features without gradient). The target critic has its own copy, updated by Polyak averaging with
+    the critic's other weights and read without gradient, as in SB3.
+
+    In an RL-Zoo YAML: ``policy: sb3_pilot.common.torch_layers.PixelGoalSACPolicy``. Same parameters as SB3's
+    ``MultiInputPolicy`` for SAC, but ``features_extractor_class`` defaults to :class:`PixelGoalExtractor` and
+    ``share_features_extractor`` must stay True (the sharing described above).
+    """
+
+    def __init__(
+        self,
+        *args: Any,
+        features_extractor_class: type[BaseFeaturesExtractor] = PixelGoalExtractor,
+        share_features_extractor: bool = True,
+        **kwargs: Any,
+    ):
+        if not share_features_extractor:
+            raise ValueError("PixelGoalSACPolicy shares its encoder between actor and critic: use MultiInputPolicy not to.")
+        super().__init__(
+            *args, features_extractor_class=features_extractor_class, share_features_extractor=True, **kwargs
+        )
+
+    def _build(self, lr_schedule: Any) -> None:
+        self.actor = self.make_actor()
+        self.critic = self.make_critic(features_extractor=self.actor.features_extractor)
+        # the actor's optimizer leaves the shared encoder alone; the critic's trains it
+        actor_parameters = [param for name, param in self.actor.named_parameters() if "features_extractor" not in name]
+        self.actor.optimizer = self.optimizer_class(actor_parameters, lr=lr_schedule(1), **self.optimizer_kwargs)  # type: ignore[call-arg]
+        self.critic.optimizer = self.optimizer_class(
+            self.critic.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs  # type: ignore[call-arg]
+        )
+        self.critic_target = self.make_critic(features_extractor=None)
+        self.critic_target.load_state_dict(self.critic.state_dict())
+        self.critic_target.set_training_mode(False)
+
+    def make_actor(self, features_extractor: BaseFeaturesExtractor | None = None) -> Actor:
+        actor_kwargs = self._update_features_extractor(self.actor_kwargs, features_extractor)
+        return _DetachedFeaturesActor(**actor_kwargs).to(self.device)
+
+    def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None) -> ContinuousCritic:
+        critic_kwargs = self._update_features_extractor(self.critic_kwargs, features_extractor)
+        return _EncoderTrainingCritic(**critic_kwargs).to(self.device)

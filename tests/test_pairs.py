@@ -1,0 +1,112 @@
+"""The six transfer pairs: their stage graphs, both similarities of the bonus, pixel-only image agents, the demo budget."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from sb3_pilot.experiments.challenges import BUDGETS, CHALLENGES, run_challenge
+from sb3_pilot.experiments.challenges.definitions import HER, IMAGE_ENCODER, PILOT_DISPLACEMENT, PILOT_PAPER
+from sb3_pilot.experiments.demo import BUDGET as DEMO_BUDGET
+from sb3_pilot.experiments.pairs import FINAL_EVAL, table, verdict
+from sb3_pilot.experiments.zoo import hyperparams_dir
+
+PAIRS = {
+    "high-dim-action": ("Pilot/FetchReach-v0", "Pilot/FetchReachHighDim-v0"),
+    "high-dim-action-push": ("Pilot/FetchPush-v0", "Pilot/FetchPushHighDim-v0"),
+    "vec-to-image": ("Pilot/FetchReach-v0", "Pilot/FetchReachImage-v0"),
+    "vec-to-image-reacher": ("Pilot/Reacher-v0", "Pilot/ReacherImage-v0"),
+    "complex-morph": ("Pilot/PointLocomotion-v0", "Pilot/AntLocomotion-v0"),
+    "zero-shot-ant-maze": ("Pilot/Maze2D-v0", "Pilot/AntMaze-v0"),
+}
+BONUS = ("vec-to-image", "vec-to-image-reacher", "complex-morph")
+PIXEL_POLICY = "sb3_pilot.common.torch_layers.PixelGoalSACPolicy"
+
+
+def test_six_pairs() -> None:
+    """The paper's six pairs, each with a source, PILoT and a SAC+HER baseline on the target, at every budget."""
+    assert set(CHALLENGES) == set(PAIRS)
+    for name, (source_env, target_env) in PAIRS.items():
+        challenge = CHALLENGES[name]
+        assert challenge.target_env == target_env
+        assert challenge.stages[0].env_id == source_env, name
+        assert {"smoke", "cpu"} <= set(challenge.steps), name
+        stages = {stage.name: stage for stage in challenge.stages}
+        assert stages["her"].method == HER and stages["her"].env_id == target_env, name
+        for budget, steps in challenge.steps.items():
+            assert set(steps) <= set(stages), (name, budget)
+
+
+@pytest.mark.parametrize("name", BONUS)
+def test_bonus_pairs_run_both_similarities(name: str) -> None:
+    """HER+PILoT twice, the paper's goal_cosine (pilot) and displacement_cosine (pilot_disp), on the same planner."""
+    stages = {stage.name: stage for stage in CHALLENGES[name].stages}
+    outputs = {"distill": Path("planner.pt")}
+    variants = (("pilot", PILOT_PAPER, "goal_cosine"), ("pilot_disp", PILOT_DISPLACEMENT, "displacement_cosine"))
+    for stage_name, method, similarity in variants:
+        stage = stages[stage_name]
+        assert stage.method == method and stage.conf_file == "sac_pilot.yml" and stage.needs == ("distill",)
+        ((wrapper, kwargs),) = stage.params(outputs)["env_wrapper"][0].items()
+        assert wrapper == "sb3_pilot.PilotBonusWrapper" and kwargs["similarity"] == similarity
+        assert kwargs["planner"] == "planner.pt" and kwargs["beta"] == 1.0
+    for budget in ("smoke", "cpu"):
+        steps = CHALLENGES[name].steps[budget]
+        assert steps["pilot"] == steps["pilot_disp"] == steps["her"], (name, budget)
+
+
+@pytest.mark.parametrize("conf", ["sac.yml", "sac_pilot.yml", "cpu/sac.yml", "cpu/sac_pilot.yml"])
+def test_image_entries_are_pixel_only(conf: str) -> None:
+    """Both methods' image agents use the pixel-only policy (the YAML), with the encoder the challenges name."""
+    entries = yaml.safe_load((hyperparams_dir() / conf).read_text())
+    for env_id in ("Pilot/FetchReachImage-v0", "Pilot/ReacherImage-v0"):
+        assert entries[env_id]["policy"] == PIXEL_POLICY, (conf, env_id)
+    if "sac_pilot" in conf:  # the paper-value bonus is the paper's similarity
+        for env_id, entry in entries.items():
+            assert entry["env_wrapper"][0]["sb3_pilot.PilotBonusWrapper"]["similarity"] == "goal_cosine", env_id
+    assert IMAGE_ENCODER in ("nature", "paper")
+    for name in ("vec-to-image", "vec-to-image-reacher"):
+        kwargs = CHALLENGES[name].fast_hyperparams["sac"]["policy_kwargs"]["features_extractor_kwargs"]
+        assert kwargs == {"encoder": IMAGE_ENCODER}
+
+
+def test_demo_budget_is_named() -> None:
+    """make demo runs the named ``demo`` budget of High-Dim-Action (test_challenges.py runs it at smoke size)."""
+    assert DEMO_BUDGET == "demo" and DEMO_BUDGET in BUDGETS
+    steps = CHALLENGES["high-dim-action"].steps["demo"]
+    assert steps["source"] >= 8000 and steps["pilot"] == steps["her"] <= steps["source"]
+
+
+def test_verdict() -> None:
+    def result(rates: list[float]) -> dict:
+        steps = [100 * (index + 1) for index in range(len(rates))]
+        return {"runs": [{"success_rate": rates}], "mean": {"timesteps": steps, "success_rate": rates}}
+
+    her = result([0.0, 0.0, 0.2, 0.5])
+    assert verdict(result([0.0, 0.6, 1.0, 1.0]), her) == "confirmed: 0.50 success (HER's final: 0.50) at 0.50x HER's steps"
+    later = verdict(result([0.0, 0.0, 0.6, 1.0]), her)
+    assert later.startswith("not at this budget: 0.50 success (HER's final: 0.50) at 0.75x")
+    assert verdict(result([0.0, 0.0, 0.0, 0.1]), her).startswith("refuted")
+    assert verdict(result([0.0] * 4), result([0.0] * 4)) == "not at this budget (neither learned)"
+    assert verdict(result([0.0, 0.5, 1.0, 1.0]), result([0.0] * 4)).startswith("confirmed")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["high-dim-action-push", "vec-to-image-reacher"])
+def test_new_pairs_smoke(tmp_path: Path, name: str) -> None:
+    """The pairs the runner lacked, end to end at the smoke budget, and their row of the results table."""
+    summary = run_challenge(name, "smoke", root=tmp_path)
+    run_dir = tmp_path / name
+    methods = {stage.method for stage in CHALLENGES[name].stages if stage.method is not None}
+    assert set(summary["methods"]) == methods
+    for result in summary["methods"].values():
+        assert result["env_id"] == PAIRS[name][1] and result["mean"]["timesteps"][-1] > 0
+    if name == "vec-to-image-reacher":
+        args = (run_dir / "models/seed_0/her/sac/Pilot-ReacherImage-v0_1/Pilot-ReacherImage-v0/config.yml").read_text()
+        assert PIXEL_POLICY in args and f"encoder: {IMAGE_ENCODER}" in args
+    rows = table([run_dir], episodes=1)
+    assert rows.count("\n") == 1 + len(methods)
+    final = json.loads((run_dir / FINAL_EVAL).read_text())
+    assert set(final) == methods and all(entry["seed_0"]["distance"] >= 0 for entry in final.values())
