@@ -11,7 +11,7 @@ import pytest
 
 from sb3_pilot.experiments.challenges import CHALLENGES, run_challenge, steps_to
 from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
-from sb3_pilot.experiments.challenges.stages import STAGE_MARKER
+from sb3_pilot.experiments.challenges.stages import STAGE_LOG, STAGE_MARKER
 from sb3_pilot.experiments.demo import main as demo_main
 from sb3_pilot.experiments.plots import main as plots_main
 from sb3_pilot.transfer.state_planner import load_vec_normalize
@@ -76,6 +76,8 @@ def test_high_dim_action_smoke_resume_and_plots(tmp_path: Path, capsys: pytest.C
     for key, stats in saved["source"].obs_rms.items():
         np.testing.assert_array_equal(saved["pilot"].obs_rms[key].mean, stats.mean, err_msg=key)
         np.testing.assert_array_equal(saved["pilot"].obs_rms[key].var, stats.var, err_msg=key)
+    for stage in ("source", "pilot", "her"):  # each stage ran in a process of its own, its output in its log
+        assert "python -m sb3_pilot.experiments.zoo train" in (run_dir / "models" / "seed_0" / stage / STAGE_LOG).read_text()
     marker = run_dir / "models" / "seed_0" / "source" / STAGE_MARKER
     marker_time = marker.stat().st_mtime
     capsys.readouterr()

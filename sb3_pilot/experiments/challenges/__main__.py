@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 
 from sb3_pilot.experiments.challenges.backends import BACKENDS, StageFailed
@@ -43,6 +44,10 @@ def main(argv: list[str] | None = None) -> None:
         "--threads", type=int, default=1, help="torch threads per stage process (the CPUs each Ray task declares)"
     )
     args = parser.parse_args(argv)
+    if args.backend == "ray" and args.jobs != 1:
+        parser.error("--jobs is for the local backend: Ray runs as many stages at once as the cluster has CPUs")
+    # SIGTERM ends the run as Ctrl-C does: the running stages are stopped (Ray tasks cancelled), none is left behind
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     names = list(CHALLENGES) if args.challenge == "all" else [args.challenge]
     for name in names:
         try:

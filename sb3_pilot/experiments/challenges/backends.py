@@ -43,6 +43,8 @@ TAIL_LINES = 30
 POLL_S = 0.2
 #: Seconds a stopped stage gets to end after SIGTERM, before SIGKILL.
 STOP_GRACE_S = 10.0
+#: Ray's setting of its workers' niceness (a local cluster started here: 0).
+WORKER_NICENESS = "RAY_worker_niceness"
 #: What a stage's process runs (its parent's pid is its first argument).
 WORKER = "from sb3_pilot.experiments.challenges.backends import stage_process_main; stage_process_main()"
 
@@ -271,7 +273,15 @@ def run_ray(tasks: Sequence[StageTask], address: str | None, on_start: OnStart, 
     started_here = not ray.is_initialized()
     if started_here:
         local = {"include_dashboard": False} if address is None else {}
-        ray.init(address=address, log_to_driver=False, **local)
+        # Ray runs its workers at nice +15 by default (RAY_worker_niceness); the stages are the work: they run at the
+        # runner's priority, as with --jobs (a cluster's nodes keep what their `ray start` was given)
+        previous = os.environ.get(WORKER_NICENESS)
+        os.environ.setdefault(WORKER_NICENESS, "0")
+        try:
+            ray.init(address=address, log_to_driver=False, **local)
+        finally:
+            if previous is None:
+                os.environ.pop(WORKER_NICENESS, None)
     remote = ray.remote(_ray_stage)
     refs: dict[str, Any] = {}
     for task in tasks:
