@@ -184,3 +184,19 @@ def test_recipe_builds_the_model():
     assert policy_kwargs["features_extractor_class"] is GoalRelativeExtractor
     model = SAC("MultiInputPolicy", env, policy_kwargs=policy_kwargs, buffer_size=10, device="cpu")
     assert model.actor.features_extractor.features_dim == 30
+
+
+def test_wall_margin_wrapper_rewards_are_relabelable():
+    from sb3_pilot.experiments.ant_controller import WallMarginWrapper, umaze_wall_distance
+
+    np.testing.assert_allclose(
+        umaze_wall_distance(np.array([[-4.0, 4.0], [-4.0, 2.5], [3.0, 3.0], [0.0, 0.0]])), [2, 0.5, np.sqrt(2), 0]
+    )
+    env = WallMarginWrapper(gym.make("Pilot/Maze2D-v0"), margin=1.0, cost=1.0)
+    obs, _ = env.reset(seed=0)
+    for _ in range(20):
+        obs, reward, _, _, info = env.step(env.action_space.sample())
+        assert reward == env.compute_reward(obs["achieved_goal"], obs["desired_goal"], info)
+    achieved = np.array([[-4.0, 4.0], [-4.0, 2.5], [-4.0, 2.5]], dtype=np.float32)
+    desired = np.array([[4.0, 4.0], [4.0, 4.0], [-4.0, 2.0]], dtype=np.float32)
+    np.testing.assert_array_equal(env.compute_reward(achieved, desired, None), [-1, -2, 0])  # the goal is never penalised

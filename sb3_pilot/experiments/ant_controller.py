@@ -46,7 +46,57 @@ CHECK_ENV_KWARGS: dict[str, Any] = {
     "terminate_when_flipped": False,
 }
 CHECK_GOAL_TIMEOUT = 100  # steps a goal is given before it counts as missed and is replaced
-MAP_EXTENT = 6.0  # AntMaze's x, y lie in [-6, 6]
+MAP_EXTENT = 6.0
+WALL_MARGIN_WRAPPER = "sb3_pilot.experiments.ant_controller.WallMarginWrapper"  # AntMaze's x, y lie in [-6, 6]
+
+
+def umaze_wall_distance(xy: np.ndarray) -> np.ndarray:
+    """
+    :param xy: points of shape (..., 2) in the U-maze's world coordinates
+    :return: distance of each point to the nearest wall block (0 on a wall's face or inside a wall)
+    """
+    from sb3_pilot.envs.maze import UMAZE_MAP, UMAZE_SCALING, umaze_cell_to_xy
+
+    walls = np.array(
+        [
+            umaze_cell_to_xy((row, col))
+            for row in range(len(UMAZE_MAP))
+            for col in range(len(UMAZE_MAP[0]))
+            if UMAZE_MAP[row][col]
+        ]
+    )
+    offset = np.abs(np.asarray(xy, dtype=np.float64)[..., None, :] - walls) - UMAZE_SCALING / 2
+    return np.min(np.linalg.norm(np.maximum(offset, 0.0), axis=-1), axis=-1)
+
+
+class WallMarginWrapper(gym.Wrapper):
+    """
+    Source-task option for ``Pilot/Maze2D-v0`` (zoo: ``env_wrapper``): every step that ends within ``margin`` of a
+    wall without reaching the goal costs ``1 + cost`` instead of 1. The point robot of Maze2D slides along walls
+    at no cost, so its optimal paths (and the landmarks of the planner distilled from it) run diagonally into the
+    inner wall; a robot with a body (the Ant, legs about 1 unit from its centre) cannot follow those. The reward is
+    a function of the achieved goal (the position) and the goal, so HER relabels it consistently, and the task
+    (its ID, goals, observations) stays Maze2D's.
+
+    :param env: ``Pilot/Maze2D-v0``
+    :param margin: distance to the walls under which a step costs more
+    :param cost: extra cost of such a step
+    """
+
+    def __init__(self, env: gym.Env, margin: float = 1.0, cost: float = 1.0):
+        super().__init__(env)
+        self.margin = margin
+        self.cost = cost
+
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
+        reward = self.env.get_wrapper_attr("compute_reward")(achieved_goal, desired_goal, info)
+        near_wall = umaze_wall_distance(achieved_goal) < self.margin
+        return (reward - self.cost * (near_wall & (reward < 0))).astype(np.float32)
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        observation, reward, terminated, truncated, info = self.env.step(action)
+        reward = float(self.compute_reward(observation["achieved_goal"], observation["desired_goal"], info))
+        return observation, reward, terminated, truncated, info
 
 
 def _python() -> list[str]:
@@ -90,11 +140,9 @@ def train(args: argparse.Namespace) -> None:
         "--num-threads",
         "1",
         "--save-freq",
-        "25000",
-        "--eval-freq",
-        "25000",
-        "--eval-episodes",
-        "5",
+        "50000",
+        "--eval-freq",  # the zoo builds its eval env without the YAML's env_kwargs: `check` evaluates instead
+        "-1",
         "-f",
         args.log_folder,
     ]
@@ -174,6 +222,9 @@ def planner(args: argparse.Namespace) -> None:
 
     from sb3_pilot import UDPO, distill_goal_planner
     from sb3_pilot.challenges.stages import load_zoo_model
+    from sb3_pilot.zoo import register
+
+    register()  # the zoo's ALGOS["udpo"], which load_zoo_model reads
 
     try:
         model_path = zoo_model_path(args.log_folder, "udpo", SOURCE_ENV)
@@ -192,6 +243,14 @@ def planner(args: argparse.Namespace) -> None:
                 "--env-kwargs",
                 "goal_distribution:'uniform'",
                 "--save-replay-buffer",
+                *(
+                    [
+                        "--hyperparams",
+                        f"env_wrapper:{{'{WALL_MARGIN_WRAPPER}': {{'margin': {args.wall_margin}}}}}",
+                    ]
+                    if args.wall_margin
+                    else []
+                ),
                 "-n",
                 str(args.steps),
                 "--seed",
@@ -327,6 +386,7 @@ def main(argv: list[str] | None = None) -> None:
     p_planner.add_argument("-f", "--log-folder", default="runs/maze")
     p_planner.add_argument("--output", default="planner.pt")
     p_planner.add_argument("--retrain", action="store_true", help="train even if the log folder holds a run")
+    p_planner.add_argument("--wall-margin", type=float, default=0.0, help="WallMarginWrapper's margin (0: plain Maze2D)")
     p_planner.set_defaults(func=planner)
     p_guided = commands.add_parser("guided", help="evaluate the guided controller on Pilot/AntMaze-v0")
     p_guided.add_argument("--model", required=True)
