@@ -127,6 +127,9 @@ def load_controller(path: str | Path) -> Any:
 
 
 def train(args: argparse.Namespace) -> None:
+    if args.continue_from is not None:
+        continue_training(args)
+        return
     command = [
         *_python(),
         "--algo",
@@ -149,6 +152,52 @@ def train(args: argparse.Namespace) -> None:
     if args.steps is not None:
         command += ["-n", str(args.steps)]
     _run(command)
+
+
+def recipe() -> dict[str, Any]:
+    """The ``Pilot/AntLocomotion-v0`` entry of ``hyperparams/cpu/ant_controller.yml``."""
+    import yaml
+
+    from sb3_pilot.zoo import hyperparams_dir
+
+    return yaml.safe_load((hyperparams_dir() / "cpu" / "ant_controller.yml").read_text())[CONTROLLER_ENV]
+
+
+def continue_training(args: argparse.Namespace) -> None:
+    """
+    Train a saved controller further, with the recipe's env. The zoo saves no replay buffer here (300k transitions),
+    and continuing through the zoo would refill it with ``learning_starts`` random-action steps; this refills it
+    with ``--warmup`` steps of the controller's own (stochastic) actions, without updates, then trains on.
+    """
+    import torch as th
+    from stable_baselines3.common.callbacks import CheckpointCallback
+    from stable_baselines3.common.env_util import make_vec_env
+
+    th.set_num_threads(1)
+    entry = recipe()
+    output = Path(args.output)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    env = make_vec_env(
+        CONTROLLER_ENV,
+        n_envs=entry["n_envs"],
+        seed=args.seed,
+        env_kwargs=entry["env_kwargs"],
+        monitor_dir=str(output.parent),
+        monitor_kwargs=eval(entry["monitor_kwargs"]),
+    )
+    from stable_baselines3 import SAC
+
+    model = SAC.load(args.continue_from, env=env, device="cpu")
+    start, steps = model.num_timesteps, model.gradient_steps
+    print(f"continuing {args.continue_from} from {start} steps: {args.warmup} warm-up steps, then {args.steps}", flush=True)
+    model.learning_starts, model.gradient_steps = 0, 0  # the policy's own actions, no update
+    model.learn(args.warmup, reset_num_timesteps=False, log_interval=100)
+    model.gradient_steps = steps
+    checkpoints = CheckpointCallback(max(50_000 // entry["n_envs"], 1), str(output.parent), name_prefix="continued")
+    wall = time.time()
+    model.learn(args.steps, reset_num_timesteps=False, callback=checkpoints, log_interval=20)
+    model.save(output)
+    print(f"saved {output} at {model.num_timesteps} steps ({time.time() - wall:.0f} s of training)", flush=True)
 
 
 def open_ground_check(model: Any, episodes: int, seed: int) -> dict[str, float]:
@@ -373,6 +422,9 @@ def main(argv: list[str] | None = None) -> None:
     p_train.add_argument("--seed", type=int, default=0)
     p_train.add_argument("--steps", type=int, default=None, help="override n_timesteps")
     p_train.add_argument("-f", "--log-folder", default="runs/ctrl")
+    p_train.add_argument("--continue-from", default=None, help="a saved controller to train further (not with the zoo)")
+    p_train.add_argument("--warmup", type=int, default=20_000, help="steps refilling the buffer before updates")
+    p_train.add_argument("--output", default="runs/ctrl_continued/controller.zip", help="with --continue-from")
     p_train.set_defaults(func=train)
     p_check = commands.add_parser("check", help="open-ground check of a controller")
     p_check.add_argument("--model", required=True)
