@@ -193,7 +193,7 @@ def continue_training(args: argparse.Namespace) -> None:
     model.learning_starts, model.gradient_steps = 0, 0  # the policy's own actions, no update
     model.learn(args.warmup, reset_num_timesteps=False, log_interval=100)
     model.gradient_steps = steps
-    checkpoints = CheckpointCallback(max(50_000 // entry["n_envs"], 1), str(output.parent), name_prefix="continued")
+    checkpoints = CheckpointCallback(max(args.save_freq // entry["n_envs"], 1), str(output.parent), name_prefix="continued")
     wall = time.time()
     model.learn(args.steps, reset_num_timesteps=False, callback=checkpoints, log_interval=20)
     model.save(output)
@@ -425,6 +425,7 @@ def main(argv: list[str] | None = None) -> None:
     p_train.add_argument("--continue-from", default=None, help="a saved controller to train further (not with the zoo)")
     p_train.add_argument("--warmup", type=int, default=20_000, help="steps refilling the buffer before updates")
     p_train.add_argument("--output", default="runs/ctrl_continued/controller.zip", help="with --continue-from")
+    p_train.add_argument("--save-freq", type=int, default=50_000, help="checkpoint interval in steps, with --continue-from")
     p_train.set_defaults(func=train)
     p_check = commands.add_parser("check", help="open-ground check of a controller")
     p_check.add_argument("--model", required=True)
