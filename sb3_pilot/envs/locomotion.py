@@ -100,6 +100,18 @@ class PointLocomotionEnv(GoalReachingMixin, MujocoEnv):
         return obs, reward, False, False, info
 
 
+def ant_up_z(qpos: np.ndarray) -> float:
+    """
+    :param qpos: the Ant's ``qpos`` (free joint first: xyz, then the torso's quaternion ``w, x, y, z``)
+    :return: z component of the torso's up axis in the world: 1 upright, negative once flipped onto its back
+    """
+    _, qx, qy, _ = qpos[3:7]
+    return float(1.0 - 2.0 * (qx * qx + qy * qy))
+
+
+REWARD_TYPES = ("sparse", "dense")
+
+
 class AntLocomotionEnv(GoalReachingMixin, AntEnv):
     """
     ``Pilot/AntLocomotion-v0``: gymnasium's Ant (``ant.xml``, the Ant of ``Pilot/AntMaze-v0``) on open ground.
@@ -108,34 +120,138 @@ class AntLocomotionEnv(GoalReachingMixin, AntEnv):
     share gear (150), control range ([-1, 1]), masses and timing. Observation: the Ant's xy (2) followed by
     the rest of its joint state (27) = 29; achieved goal: xy. Falling over does not end the episode.
 
+    The keyword options below train a controller for landmark guidance (``--env-kwargs`` of the zoo, with
+    ``max_episode_steps`` for longer episodes); their defaults are the task above, unchanged.
+
     :param render_mode: ``"rgb_array"``, ``"human"`` or None
+    :param goal_range: None: goals uniform over the disk of radius 2 around the origin (the task above);
+        ``(low, high)``: each goal at a distance uniform in ``[low, high]`` from the Ant's current xy, in a
+        uniform direction
+    :param goal_hold_steps: None: one goal per episode; an integer ``n``: once the goal is reached, it stays
+        for ``n`` more steps, then a new goal is drawn around the Ant's position (goals keep moving)
+    :param distance_threshold: success radius (0.1 for the task above)
+    :param reward_type: ``"sparse"`` (0 on success, else -1, the task above) or ``"dense"``: the progress
+        towards the goal in units per second, plus ``upright_reward`` while not flipped, plus
+        ``goal_reward`` while the goal is reached, minus ``ctrl_cost_weight * ||action||^2``, all positive
+        terms so that ending the episode is never attractive. ``compute_reward`` stays the sparse reward of
+        the goals (for HER); the dense reward is for training without relabelling
+    :param upright_reward: dense reward per step while the Ant is not flipped
+    :param goal_reward: dense reward per step while the goal is reached
+    :param ctrl_cost_weight: weight of the squared action in the dense reward
+    :param terminate_when_flipped: end the episode (``terminated``) once the torso's up axis points below
+        the horizon (``ant_up_z < 0``)
+    :param reset_noise_scale: noise on the initial joint state (AntMaze's Ant: 0)
     """
 
     metadata: dict[str, Any] = {"render_modes": list(_RENDER_MODES), "render_fps": 20}  # noqa: RUF012
 
-    def __init__(self, render_mode: str | None = None):
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        goal_range: tuple[float, float] | None = None,
+        goal_hold_steps: int | None = None,
+        distance_threshold: float = LOCOMOTION_DISTANCE_THRESHOLD,
+        reward_type: str = "sparse",
+        upright_reward: float = 1.0,
+        goal_reward: float = 1.0,
+        ctrl_cost_weight: float = 0.5,
+        terminate_when_flipped: bool = False,
+        reset_noise_scale: float = 0.0,
+    ):
         check_render_mode(render_mode, _RENDER_MODES)
-        self.distance_threshold = LOCOMOTION_DISTANCE_THRESHOLD
+        if goal_range is not None:
+            goal_range = (float(goal_range[0]), float(goal_range[1]))
+            if not 0 <= goal_range[0] <= goal_range[1]:
+                raise ValueError(f"goal_range must be (low, high) with 0 <= low <= high, got {goal_range!r}")
+        if goal_hold_steps is not None and goal_hold_steps < 0:
+            raise ValueError(f"goal_hold_steps must be >= 0 or None, got {goal_hold_steps!r}")
+        if distance_threshold <= 0:
+            raise ValueError(f"distance_threshold must be positive, got {distance_threshold!r}")
+        if reward_type not in REWARD_TYPES:
+            raise ValueError(f"reward_type must be one of {REWARD_TYPES}, got {reward_type!r}")
+        self.goal_range = goal_range
+        self.goal_hold_steps = goal_hold_steps
+        self.distance_threshold = float(distance_threshold)
+        self.reward_type = reward_type
+        self.upright_reward = upright_reward
+        self.goal_reward = goal_reward
+        self.terminate_when_flipped = terminate_when_flipped
         self.goal = np.zeros(2)
-        AntEnv.__init__(self, render_mode=render_mode, **ANT_KWARGS)
+        self._steps_at_goal = 0
+        self.goals_reached = 0
+        ant_kwargs = {**ANT_KWARGS, "reset_noise_scale": reset_noise_scale}
+        AntEnv.__init__(self, render_mode=render_mode, ctrl_cost_weight=ctrl_cost_weight, **ant_kwargs)
         obs_space = spaces.Box(-np.inf, np.inf, shape=(ANT_OBS_DIM,), dtype=np.float32)
         self.observation_space = goal_observation_space(obs_space, 2)
+
+    def _sample_goal(self, position: np.ndarray) -> np.ndarray:
+        if self.goal_range is None:
+            return sample_locomotion_goal(self.np_random)
+        distance = self.np_random.uniform(*self.goal_range)
+        angle = self.np_random.uniform(-np.pi, np.pi)
+        return np.asarray(position[:2], dtype=np.float64) + distance * np.array([np.cos(angle), np.sin(angle)])
 
     def _get_obs(self) -> dict[str, np.ndarray]:
         ant_obs = AntEnv._get_obs(self).astype(np.float32)
         return goal_observation(ant_obs, ant_obs[:2], self.goal)
 
     def reset_model(self) -> dict[str, np.ndarray]:
-        self.goal = sample_locomotion_goal(self.np_random)
-        return AntEnv.reset_model(self)
+        self._steps_at_goal, self.goals_reached = 0, 0
+        if self.goal_range is None:  # the task's own order of random draws: goal, then the Ant's noise
+            self.goal = sample_locomotion_goal(self.np_random)
+            return AntEnv.reset_model(self)
+        AntEnv.reset_model(self)
+        self.goal = self._sample_goal(self.data.qpos[:2])
+        return self._get_obs()
 
     def _get_reset_info(self) -> dict[str, Any]:
         return self._goal_reward_info(self._get_obs())[1]
 
+    @property
+    def flipped(self) -> bool:
+        """Whether the torso's up axis points below the horizon."""
+        return ant_up_z(self.data.qpos) < 0.0
+
+    @property
+    def _options_set(self) -> bool:
+        """Whether any guidance-training option differs from the task's default."""
+        return (
+            self.goal_range is not None
+            or self.goal_hold_steps is not None
+            or self.reward_type != "sparse"
+            or self.terminate_when_flipped
+        )
+
     def step(self, action: np.ndarray):
+        previous_distance = self.distance_to_goal()
         self.do_simulation(action, self.frame_skip)
         obs = self._get_obs()
         reward, info = self._goal_reward_info(obs)
+        terminated = False
+        if self._options_set:
+            flipped = self.flipped
+            info["flipped"] = flipped
+            if self.reward_type == "dense":
+                progress = (previous_distance - self.distance_to_goal()) / self.dt
+                reward = (
+                    progress
+                    + self.upright_reward * float(not flipped)
+                    + self.goal_reward * float(info["is_success"])
+                    - float(self.control_cost(action))
+                )
+            terminated = bool(self.terminate_when_flipped and flipped)
+            if info["is_success"] and self.goal_hold_steps is not None:
+                self._steps_at_goal += 1
+                if self._steps_at_goal > self.goal_hold_steps:  # a new goal, seen from this observation on
+                    self.goals_reached += 1
+                    self._steps_at_goal = 0
+                    self.goal = self._sample_goal(self.data.qpos[:2])
+                    obs = self._get_obs()
+            info["goals_reached"] = self.goals_reached
         if self.render_mode == "human":
             self.render()
-        return obs, reward, False, False, info
+        return obs, reward, terminated, False, info
+
+    def distance_to_goal(self) -> float:
+        """:return: distance from the Ant's xy to the current goal"""
+        return float(np.linalg.norm(np.asarray(self.data.qpos[:2], dtype=np.float64) - self.goal))

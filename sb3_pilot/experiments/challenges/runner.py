@@ -165,8 +165,8 @@ def run_challenge(
     (also whenever all the stages of a seed have finished, so a long run shows its results as they come). The
     summary does not depend on the backend nor on ``jobs``.
 
-    :param name: a key of :data:`~sb3_pilot.challenges.CHALLENGES` (or a :class:`Challenge`)
-    :param budget: a key of :data:`~sb3_pilot.challenges.BUDGETS` or a custom :class:`Budget`
+    :param name: a key of :data:`~sb3_pilot.experiments.challenges.CHALLENGES` (or a :class:`Challenge`)
+    :param budget: a key of :data:`~sb3_pilot.experiments.challenges.BUDGETS` or a custom :class:`Budget`
     :param seeds: the seeds
     :param root: output root; the challenge writes into ``<root>/<name>/``
     :param steps: env steps per stage, overriding the budget's (e.g. the demo's)
