@@ -200,3 +200,25 @@ def test_wall_margin_wrapper_rewards_are_relabelable():
     achieved = np.array([[-4.0, 4.0], [-4.0, 2.5], [-4.0, 2.5]], dtype=np.float32)
     desired = np.array([[4.0, 4.0], [4.0, 4.0], [-4.0, 2.0]], dtype=np.float32)
     np.testing.assert_array_equal(env.compute_reward(achieved, desired, None), [-1, -2, 0])  # the goal is never penalised
+
+
+SHIPPED = Path(__file__).resolve().parents[1] / "zoo_runs" / "zero-shot-ant-maze" / "controller"
+
+
+@pytest.mark.parametrize("planner_file", ["maze2d_planner_margin1.pt", "maze2d_planner.pt"])
+def test_shipped_controller_and_planners_load_and_guide(planner_file: str) -> None:
+    """The committed controller and Maze2D planners load on a fresh clone and run a guided Ant-Maze episode."""
+    from sb3_pilot import GoalPlanner, LandmarkGuidance
+    from sb3_pilot.experiments.ant_controller import load_controller
+
+    controller = load_controller(str(SHIPPED / "ant_controller_sac_200k.zip"))
+    planner = GoalPlanner.load(SHIPPED / planner_file)
+    assert planner.source_task == "Pilot/Maze2D-v0" and planner.goal_dim == 2
+    env = LandmarkGuidance(gym.make("Pilot/AntMaze-v0", max_episode_steps=20), planner, horizon=3)
+    observation, _ = env.reset(seed=0)
+    for _ in range(20):
+        action, _ = controller.predict(observation, deterministic=True)
+        observation, _, terminated, truncated, info = env.step(action)
+    assert truncated and not terminated and env.action_space.contains(action.astype(np.float32))
+    assert np.linalg.norm(info["landmark"] - observation["achieved_goal"]) < 4.0  # a landmark near the Ant
+    env.close()
