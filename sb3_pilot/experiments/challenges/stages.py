@@ -31,6 +31,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_pilot.distill import GoalPlanner, distill_goal_planner
 from sb3_pilot.experiments.zoo import hyperparams_dir
+from sb3_pilot.experiments.zoo import register as register_zoo
 from sb3_pilot.transfer import LandmarkGuidance
 from sb3_pilot.udpo import UDPO
 
@@ -128,6 +129,7 @@ def load_zoo_model(model_path: Path, env: DummyVecEnv | None = None) -> tuple[Ba
     """
     from rl_zoo3 import ALGOS
 
+    register_zoo()  # UDPO in the zoo's ALGOS and the Pilot/ tasks (a stage's process may not have run the zoo)
     algo = model_path.parent.parent.name
     stats = model_path.parent / model_path.stem / "vecnormalize.pkl"
     vec_normalize = None
