@@ -107,6 +107,43 @@ def test_planner_coef_enters_planner_gradient() -> None:
     assert any(not th.equal(planners[0][name], planners[1][name]) for name in planners[0])
 
 
+def test_plan_target_policy_fits_forward_dynamics_and_pulls_planner_to_it(filled_model: UDPO) -> None:
+    """plan_target="policy": T is fitted on the buffer's transitions every gradient step, the planner's likelihood term
+    targets T(s, a) at the policy's own action (not the buffer's next state), and neither touches I."""
+    model = filled_model
+    assert model.plan_target == "policy" and model.forward_dynamics is not None
+    model._n_updates = 1
+    forward, inverse = snapshot(model.forward_dynamics), snapshot(model.inverse_dynamics)
+    model.train(gradient_steps=2, batch_size=64)
+    assert all(changed(forward, model.forward_dynamics).values())
+    assert not any(changed(inverse, model.inverse_dynamics).values())
+
+    buffer_model = UDPO("MultiInputPolicy", PointGoalEnv(), plan_target="buffer", **FAST_KWARGS)
+    assert buffer_model.forward_dynamics is None and buffer_model.policy.forward_dynamics is None
+    buffer_model.learn(300)  # the paper's implementation still trains
+    assert buffer_model._n_updates > 0
+
+
+def test_forward_dynamics_learns_the_transition(filled_model: UDPO) -> None:
+    model = filled_model
+    data = model.replay_buffer.sample(256)
+    state = model.state_planner.planner_state(data.observations)
+    next_state = model.state_planner.planner_state(data.next_observations)
+    before = -model.forward_dynamics.log_prob(state, next_state, data.actions).mean().item()
+    for _ in range(200):
+        batch = model.replay_buffer.sample(64)
+        model.train_forward_dynamics(
+            model.state_planner.planner_state(batch.observations),
+            model.state_planner.planner_state(batch.next_observations),
+            batch.actions,
+        )
+    with th.no_grad():
+        after = -model.forward_dynamics.log_prob(state, next_state, data.actions).mean().item()
+        error = (model.forward_dynamics(state, data.actions) - next_state).norm(dim=1).mean().item()
+    assert after < before - 1.0
+    assert error < 0.5 * (next_state - state).norm(dim=1).mean().item()
+
+
 def test_learns_point_goal_env_with_her() -> None:
     """UDPO + HER reaches >= 90% success on the tiny point-mass goal task (about 30 s here)."""
     model = UDPO(
@@ -171,7 +208,7 @@ def test_save_load_round_trip(tmp_path: Path) -> None:
     for seed in range(5):
         obs, _ = env.reset(seed=seed)
         np.testing.assert_array_equal(model.predict(obs, deterministic=True)[0], loaded.predict(obs, deterministic=True)[0])
-    for name in ("state_planner", "inverse_dynamics", "critic"):
+    for name in ("state_planner", "inverse_dynamics", "forward_dynamics", "critic"):
         for (_, saved), (_, restored) in zip(
             getattr(model, name).named_parameters(), getattr(loaded, name).named_parameters(), strict=True
         ):
@@ -254,6 +291,7 @@ class DiscretePointEnv(PointGoalEnv):
         (NoAchievedGoalEnv, {"replay_buffer_class": HerReplayBuffer}, "achieved_goal"),
         (DiscretePointEnv, {}, "continuous"),
         (PointGoalEnv, {"planner_coef": -0.1}, "planner_coef"),
+        (PointGoalEnv, {"plan_target": "real"}, "plan_target"),
         (PointGoalEnv, {"inverse_dynamics_interval": 0}, "inverse_dynamics_interval"),
     ],
 )
