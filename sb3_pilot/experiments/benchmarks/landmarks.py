@@ -233,6 +233,13 @@ def run(task: str, seed: int, steps: int, checkpoints: int, udpo_kwargs: dict[st
     far = evaluate(model, task, 20, 20_000, far=True)
     planner = distill_goal_planner(model, seed=seed)
     path = imagined_path(planner, task)
+    result["labels"] = planner.metadata["labels"]
+    if planner.metadata["labels"] == "reached":  # also the distillation of the plans themselves, for comparison
+        planned = distill_goal_planner(model, seed=seed, labels="planned")
+        result["from_plans"] = {
+            **imagined_path(planned, task),
+            "follow": [int(follow(planned, task, k)) for k in range(1, 6)],
+        }
     result.update(
         success=successes,
         far_success=far["success"],
@@ -269,6 +276,14 @@ def main() -> None:
     for seed in args.seeds:
         r = run(args.task, seed, args.steps, args.checkpoints, udpo_kwargs)
         print("JSON " + json.dumps(r), flush=True)
+        if "from_plans" in r:
+            p = r["from_plans"]
+            print(
+                f"  (distilled from the plans instead: planned step {p['planned_step']:.2f}, ratio "
+                f"{p['planned_step'] / r['real_step']:.2f}, in walls {p['in_walls']}/{HORIZON}, follow "
+                f"{' '.join(map(str, p['follow']))})",
+                flush=True,
+            )
         print(
             f"| {seed} | {' / '.join(f'{s:.2f}' for s in r['success'])} ({r['far_success']:.2f}) | {r['real_step']:.2f} "
             f"| {r['teacher_step']:.2f} / {r['teacher_error']:.2f} | {r['planned_step']:.2f} | {r['ratio']:.2f} "
