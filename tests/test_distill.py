@@ -94,7 +94,7 @@ def test_vec_normalize_source_gives_raw_landmarks():
         "MultiInputPolicy", venv, replay_buffer_class=HerReplayBuffer, learning_starts=300, policy_kwargs={"net_arch": [32]}
     )
     model.learn(600)
-    planner = distill_goal_planner(model, **DISTILL_KWARGS)
+    planner = distill_goal_planner(model, **DISTILL_KWARGS, labels="planned")  # compared with the plans below
 
     observations = {key: value[:500, 0] for key, value in model.replay_buffer.observations.items()}
     normalised_plan = model.predict_next_state(venv.normalize_obs(observations))
@@ -127,6 +127,22 @@ def test_wall_maze_landmarks_go_around_the_wall():
     assert y0 + (y1 - y0) * x0 / (x0 - x1) > -0.1, f"the landmarks cross the wall (gap at y > 0): {path}"
 
 
+def test_reached_labels_are_the_forward_model_step_of_the_teacher_action(point_teacher, point_planner):
+    """Default labels of a plan_target="policy" teacher: where its deterministic action for its plan leads."""
+    assert point_planner.metadata["labels"] == "reached"
+    observations = rollout_observations(1)
+    reached, _ = teacher_goal_distribution(point_teacher, observations)
+    planned, _ = teacher_goal_distribution(point_teacher, observations, labels="planned")
+    policy = point_teacher.policy
+    with th.no_grad():
+        obs_tensor, _ = policy.obs_to_tensor(observations)
+        state = policy.state_planner.planner_state(obs_tensor)
+        actions = th.as_tensor(point_teacher.predict(observations, deterministic=True)[0])
+        expected = policy.forward_dynamics(state, actions)[:, policy.goal_slice].numpy()
+    np.testing.assert_allclose(reached, expected, atol=1e-4)
+    assert not np.allclose(reached, planned)
+
+
 def test_distill_refusals(point_teacher, tmp_path):
     with pytest.raises(ValueError, match="holdout_fraction"):
         distill_goal_planner(point_teacher, holdout_fraction=1.0)
@@ -135,6 +151,12 @@ def test_distill_refusals(point_teacher, tmp_path):
     point_teacher.save(tmp_path / "teacher")
     with pytest.raises(ValueError, match="replay buffer"):
         distill_goal_planner(UDPO.load(tmp_path / "teacher", env=PointGoalEnv()))
+    with pytest.raises(ValueError, match="labels"):
+        distill_goal_planner(point_teacher, labels="real")
+    buffer_teacher = UDPO("MultiInputPolicy", PointGoalEnv(), replay_buffer_class=HerReplayBuffer, plan_target="buffer")
+    buffer_teacher.learn(300)
+    with pytest.raises(ValueError, match="plan_target"):
+        distill_goal_planner(buffer_teacher, labels="reached")
     box_model = UDPO("MlpPolicy", "Pendulum-v1", learning_starts=10)
     with pytest.raises(ValueError, match="goal env"):
         distill_goal_planner(box_model)
