@@ -55,10 +55,12 @@ class UDPO(OffPolicyAlgorithm):
       * ``"policy"`` (default): the transition of the policy's own action. A forward dynamics model ``T(s' | s, a)``
         (``policy.forward_dynamics``, fitted by maximum likelihood on every sampled minibatch of buffer transitions)
         predicts where the action ``a ~ I(. | s, s'_plan)`` taken for the sampled plan leads:
-        ``s'_target = E[T(. | s, a)]``, held fixed in the gradient. The planner's mean is then the next state the
-        policy actually reaches from ``s`` for the target ``g``: an *immediate* landmark, one step long and outside
-        walls, whatever ``lambda`` is (the actor loss is flat in ``s'`` beyond the reachable set, where ``I``'s
-        action saturates, and along the plans that give the same action, so nothing there pulls against the term).
+        ``s'_target = E[T(. | s, a)]``, held fixed in the gradient: an on-policy estimate of the paper's
+        constraint. It pulls the plan towards the next state the policy reaches, but at ``lambda = 1e-2`` not all
+        the way (measured: the planner's mean is still 1.9x-2.4x the real step on two 2D mazes, see
+        ``zoo_runs/landmarks``). The immediate landmark is ``E[T(. | s, I(s, E[h]))]``, where the policy's
+        deterministic action leads, which ``sb3_pilot.distill.distill_goal_planner`` distils by default
+        (``labels="reached"``).
       * ``"buffer"``: the real next state of the sampled buffer transition (the implementation of the paper and of
         sb3-pilot up to 0.x). The buffer's transitions are those of all past behaviour policies and of HER-relabelled
         goals, not of ``pi``: a weak ``lambda`` leaves the plan where the actor loss puts it (beyond reach: planned

@@ -201,6 +201,7 @@ def imagined_path(planner: GoalPlanner, task: str) -> dict[str, Any]:
         "in_walls": int((~TASKS[task]["is_free"](path[1:])).sum()),
         "path_reaches_goal": bool(len(near)),
         "path_end": path[-1].round(2).tolist(),
+        "path": path.round(2).tolist(),
     }
 
 
