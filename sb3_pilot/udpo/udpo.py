@@ -491,6 +491,8 @@ class UDPO(OffPolicyAlgorithm):
     def predict_next_state(self, observation: np.ndarray | dict[str, np.ndarray], deterministic: bool = True) -> np.ndarray:
         """
         The planner's landmark: the next planner state ``s' ~ h(. | s, g)`` for an observation (or a batch).
+        This is the plan, not where the policy's action for it leads: with ``plan_target="policy"`` the latter is
+        ``policy.forward_dynamics(s, I(s, E[h]))``, what ``distill_goal_planner`` distils by default.
 
         :param observation: an observation as the policy sees it (normalised if trained with ``VecNormalize``)
         :param deterministic: return the planner's mean instead of a sample
