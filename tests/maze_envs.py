@@ -99,7 +99,9 @@ class WallMazeEnv(gym.Env):
 
 
 @functools.cache
-def train_udpo(env_class: type[gym.Env], total_timesteps: int, seed: int = 0, planner_coef: float = 1e-2) -> UDPO:
+def train_udpo(
+    env_class: type[gym.Env], total_timesteps: int, seed: int = 0, planner_coef: float = 1e-2, plan_target: str = "buffer"
+) -> UDPO:
     """UDPO + HER with the small settings that solve the tiny test envs (cached per process)."""
     model = UDPO(
         "MultiInputPolicy",
@@ -114,6 +116,7 @@ def train_udpo(env_class: type[gym.Env], total_timesteps: int, seed: int = 0, pl
         inverse_dynamics_learning_rate=1e-3,
         inverse_dynamics_gradient_steps=50,
         planner_coef=planner_coef,
+        plan_target=plan_target,
         seed=seed,
     )
     return model.learn(total_timesteps)

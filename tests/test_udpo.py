@@ -107,6 +107,53 @@ def test_planner_coef_enters_planner_gradient() -> None:
     assert any(not th.equal(planners[0][name], planners[1][name]) for name in planners[0])
 
 
+@pytest.fixture(scope="module")
+def policy_target_model() -> UDPO:
+    """As ``filled_model``, with ``plan_target="policy"`` (a forward dynamics model)."""
+    kwargs = {**FAST_KWARGS, "learning_starts": 10_000}
+    model = UDPO("MultiInputPolicy", PointGoalEnv(), seed=0, plan_target="policy", **kwargs)
+    model.learn(300)
+    return model
+
+
+def test_plan_target_policy_fits_forward_dynamics_and_pulls_planner_to_it(policy_target_model: UDPO) -> None:
+    """plan_target="policy": T is fitted on the buffer's transitions every gradient step, the planner's likelihood term
+    targets T(s, a) at the policy's own action (not the buffer's next state), and neither touches I."""
+    model = policy_target_model
+    assert model.plan_target == "policy" and model.forward_dynamics is not None
+    model._n_updates = 1
+    forward, inverse = snapshot(model.forward_dynamics), snapshot(model.inverse_dynamics)
+    model.train(gradient_steps=2, batch_size=64)
+    assert all(changed(forward, model.forward_dynamics).values())
+    assert not any(changed(inverse, model.inverse_dynamics).values())
+
+    buffer_model = UDPO("MultiInputPolicy", PointGoalEnv(), **FAST_KWARGS)  # the default: the paper's implementation
+    assert buffer_model.plan_target == "buffer"
+    assert buffer_model.forward_dynamics is None and buffer_model.policy.forward_dynamics is None
+    buffer_model.learn(300)  # the paper's implementation still trains
+    assert buffer_model._n_updates > 0
+
+
+def test_forward_dynamics_learns_the_transition(policy_target_model: UDPO) -> None:
+    model = policy_target_model
+    data = model.replay_buffer.sample(256)
+    state = model.state_planner.planner_state(data.observations)
+    next_state = model.state_planner.planner_state(data.next_observations)
+    before = -model.forward_dynamics.log_prob(state, next_state, data.actions).mean().item()
+    for _ in range(200):
+        batch = model.replay_buffer.sample(64)
+        model.train_forward_dynamics(
+            model.state_planner.planner_state(batch.observations),
+            model.state_planner.planner_state(batch.next_observations),
+            batch.actions,
+        )
+    with th.no_grad():
+        after = -model.forward_dynamics.log_prob(state, next_state, data.actions).mean().item()
+        error = (model.forward_dynamics(state, data.actions) - next_state).norm(dim=1).mean().item()
+    assert after < before - 1.0
+    assert error < 0.5 * (next_state - state).norm(dim=1).mean().item()
+
+
 def test_learns_point_goal_env_with_her() -> None:
     """UDPO + HER reaches >= 90% success on the tiny point-mass goal task (about 30 s here)."""
     model = UDPO(
@@ -159,8 +206,9 @@ def test_predict_next_state_is_planner_state(filled_model: UDPO) -> None:
     np.testing.assert_allclose(filled_model.predict_next_state(batch)[0], planned, rtol=1e-5, atol=1e-6)
 
 
-def test_save_load_round_trip(tmp_path: Path) -> None:
-    model = UDPO("MultiInputPolicy", PointGoalEnv(), seed=1, **FAST_KWARGS)
+@pytest.mark.parametrize("plan_target", ["buffer", "policy"])
+def test_save_load_round_trip(tmp_path: Path, plan_target: str) -> None:
+    model = UDPO("MultiInputPolicy", PointGoalEnv(), seed=1, plan_target=plan_target, **FAST_KWARGS)
     model.learn(300)
     model.save(tmp_path / "udpo")
     model.save_replay_buffer(tmp_path / "buffer")
@@ -171,7 +219,8 @@ def test_save_load_round_trip(tmp_path: Path) -> None:
     for seed in range(5):
         obs, _ = env.reset(seed=seed)
         np.testing.assert_array_equal(model.predict(obs, deterministic=True)[0], loaded.predict(obs, deterministic=True)[0])
-    for name in ("state_planner", "inverse_dynamics", "critic"):
+    networks = ("state_planner", "inverse_dynamics", "critic", *(("forward_dynamics",) if plan_target == "policy" else ()))
+    for name in networks:
         for (_, saved), (_, restored) in zip(
             getattr(model, name).named_parameters(), getattr(loaded, name).named_parameters(), strict=True
         ):
@@ -254,6 +303,7 @@ class DiscretePointEnv(PointGoalEnv):
         (NoAchievedGoalEnv, {"replay_buffer_class": HerReplayBuffer}, "achieved_goal"),
         (DiscretePointEnv, {}, "continuous"),
         (PointGoalEnv, {"planner_coef": -0.1}, "planner_coef"),
+        (PointGoalEnv, {"plan_target": "real"}, "plan_target"),
         (PointGoalEnv, {"inverse_dynamics_interval": 0}, "inverse_dynamics_interval"),
     ],
 )

@@ -33,17 +33,38 @@ def goal_scaling(vec_normalize: VecNormalize | None, goal_dim: int) -> tuple[np.
     return np.ones(goal_dim, dtype=np.float32), np.zeros(goal_dim, dtype=np.float32)
 
 
+#: What the distillation labels are (see :func:`teacher_goal_distribution`)
+LABELS = ("reached", "planned")
+
+
+def default_labels(model: UDPO) -> str:
+    """``"reached"`` if the teacher has a forward dynamics model (``plan_target="policy"``), else ``"planned"``."""
+    return "reached" if model.policy.forward_dynamics is not None else "planned"
+
+
 def teacher_goal_distribution(
-    model: UDPO, observations: dict[str, np.ndarray], chunk_size: int = 4096
+    model: UDPO, observations: dict[str, np.ndarray], chunk_size: int = 4096, labels: str | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """
-    The goal slice ``phi(s')`` of the teacher's planned next state ``s' ~ h(. | s, g_target)``, in raw coordinates.
+    The teacher's next goal from states ``s`` for targets ``g_target``, in raw coordinates:
+
+    * ``labels="planned"``: the goal slice ``phi(s')`` of the planned next state ``s' ~ h(. | s, g_target)``;
+    * ``labels="reached"``: the goal slice of the next state the teacher's deterministic action
+      ``a = I(s, E[h(. | s, g_target)])`` reaches, as its forward dynamics model ``T(s' | s, a)`` predicts it
+      (needs ``plan_target="policy"``): what the teacher's plan actually leads to, an immediate landmark.
 
     :param model: the teacher (a trained ``UDPO`` on a Dict goal env)
     :param observations: raw observations (as the replay buffer stores them), batched
     :param chunk_size: forward pass size
+    :param labels: ``"reached"`` or ``"planned"``; None: :func:`default_labels`
     :return: mean and standard deviation of the teacher's (Gaussian) next goal, shape (n, goal_dim) each
     """
+    labels = default_labels(model) if labels is None else labels
+    if labels not in LABELS:
+        raise ValueError(f"labels must be one of {LABELS}, got {labels!r}.")
+    forward_dynamics = model.policy.forward_dynamics
+    if labels == "reached" and forward_dynamics is None:
+        raise ValueError('labels="reached" needs a teacher trained with plan_target="policy" (its forward dynamics).')
     policy = model.policy
     goal_slice = policy.goal_slice
     assert goal_slice is not None
@@ -58,8 +79,14 @@ def teacher_goal_distribution(
             chunk = {key: value[start : start + chunk_size] for key, value in seen.items()}  # type: ignore[union-attr]
             obs_tensor, _ = policy.obs_to_tensor(chunk)
             distribution = policy.state_planner.distribution(obs_tensor)
-            means.append(distribution.mean[:, goal_slice].cpu().numpy())
-            stds.append(th.exp(distribution.delta_log_std)[:, goal_slice].cpu().numpy())
+            mean, log_std = distribution.mean, distribution.delta_log_std
+            if labels == "reached":
+                assert forward_dynamics is not None
+                actions, _ = policy.inverse_dynamics(distribution.state, mean, deterministic=True)
+                delta_mean, log_std = forward_dynamics.distribution_params(distribution.state, actions)
+                mean = distribution.state + delta_mean
+            means.append(mean[:, goal_slice].cpu().numpy())
+            stds.append(th.exp(log_std)[:, goal_slice].cpu().numpy())
     return np.concatenate(means) * scale + offset, np.concatenate(stds) * scale
 
 
@@ -131,16 +158,17 @@ def sample_buffer_pairs(buffer: DictReplayBuffer, n_samples: int, rng: np.random
     return observations
 
 
-def distillation_data(model: UDPO, n_samples: int, seed: int) -> DistillationData:
+def distillation_data(model: UDPO, n_samples: int, seed: int, labels: str | None = None) -> DistillationData:
     """
     Draw ``n_samples`` pairs from the teacher's buffer and label them with the teacher's next-goal distribution.
 
     :param model: the teacher
     :param n_samples: number of pairs
     :param seed: seed of the draw
+    :param labels: see :func:`teacher_goal_distribution`
     """
     observations = sample_buffer_pairs(_check_teacher(model), n_samples, np.random.default_rng(seed))
-    teacher_mean, teacher_std = teacher_goal_distribution(model, observations)
+    teacher_mean, teacher_std = teacher_goal_distribution(model, observations, labels=labels)
     arrays = (observations["achieved_goal"], observations["desired_goal"], teacher_mean, teacher_std)
     return DistillationData(*(th.as_tensor(array, device=model.device, dtype=th.float32) for array in arrays))
 
@@ -227,6 +255,7 @@ def distill_goal_planner(
     logger: Logger | None = None,
     log_interval: int = 1000,
     verbose: int = 0,
+    labels: str | None = None,
 ) -> GoalPlanner:
     """
     Distil a trained UDPO's state planner ``h(s' | s, g_target)`` (the teacher) into a goal planner
@@ -237,8 +266,10 @@ def distill_goal_planner(
     only data the teacher is accurate on (it was trained on it), it costs no env step, and it works for a model loaded
     with its buffer. The label is ``phi(s')``, the achieved-goal slice of the teacher's planned next state, mapped back
     to raw coordinates with the model's ``VecNormalize`` statistics (the buffer stores raw observations, the teacher
-    sees normalised ones). The loss (:func:`distillation_loss`) is the student's expected NLL of the teacher's
-    Gaussian, in closed form.
+    sees normalised ones). With ``labels="reached"`` (the default for a teacher trained with ``plan_target="policy"``)
+    the label is where the teacher's deterministic action for its plan leads, as its forward dynamics model predicts
+    it, rather than the plan itself (see :func:`teacher_goal_distribution`). The loss (:func:`distillation_loss`) is
+    the student's expected NLL of the teacher's Gaussian, in closed form.
 
     A held-out share of the pairs measures the student against the teacher before and after training, stored in
     ``planner.metadata["holdout"]``: ``nll`` and ``landmark_distance`` (see :class:`HoldoutReport`), with
@@ -258,6 +289,8 @@ def distill_goal_planner(
     :param logger: SB3 logger for ``distill/*`` values (default: stdout if ``verbose >= 1``, else none)
     :param log_interval: gradient steps between two logger dumps
     :param verbose: verbosity level: 0 no output, 1 losses and report
+    :param labels: ``"reached"`` or ``"planned"`` (see :func:`teacher_goal_distribution`); None: ``"reached"`` for a
+        teacher with a forward dynamics model, else ``"planned"``
     :return: the distilled goal planner (on the model's device)
     """
     _check_teacher(model)
@@ -280,7 +313,8 @@ def distill_goal_planner(
     if logger is None:
         logger = Logger(None, [HumanOutputFormat(sys.stdout)] if verbose >= 1 else [])
 
-    data = distillation_data(model, n_samples, seed)
+    labels = default_labels(model) if labels is None else labels
+    data = distillation_data(model, n_samples, seed, labels)
     holdout, train = data.rows(slice(n_holdout)), data.rows(slice(n_holdout, None))
     generator = th.Generator(device=model.device).manual_seed(seed)
     holdout_labels = holdout.teacher_mean + holdout.teacher_std * th.randn(
@@ -294,6 +328,7 @@ def distill_goal_planner(
             "gradient_steps": gradient_steps,
             "seed": seed,
             "teacher_num_timesteps": model.num_timesteps,
+            "labels": labels,
         }
         planner = GoalPlanner(data.achieved_goal.shape[1], net_arch, metadata=metadata).to(model.device)
     planner.set_scales(th.cat([train.achieved_goal, train.desired_goal]), train.teacher_mean - train.achieved_goal)

@@ -259,6 +259,41 @@ class InverseDynamics(nn.Module):
         return squashed_gaussian_log_prob(th.atanh(actions.clamp(-1.0 + eps, 1.0 - eps)), mean, log_std)
 
 
+class ForwardDynamics(nn.Module):
+    """
+    Forward dynamics ``T(s' | s, a)``: a diagonal Gaussian over the change of the planner state ``s' - s`` after the
+    (normalised, squashed) action ``a``, fitted by maximum likelihood on buffer transitions. UDPO uses its mean to
+    predict where the policy's own action ``a ~ I(. | s, s'_plan)`` leads, the target of the planner's likelihood term
+    (``plan_target="policy"``, see :class:`sb3_pilot.udpo.UDPO`).
+
+    :param state_dim: Size of the planner state
+    :param action_dim: Size of the action
+    :param net_arch: Hidden layer sizes
+    :param activation_fn: Activation function
+    """
+
+    optimizer: th.optim.Optimizer
+
+    def __init__(self, state_dim: int, action_dim: int, net_arch: list[int], activation_fn: type[nn.Module] = nn.ReLU):
+        super().__init__()
+        self.state_dim = state_dim
+        self.action_dim = action_dim
+        self.net = nn.Sequential(*create_mlp(state_dim + action_dim, 2 * state_dim, net_arch, activation_fn))
+
+    def distribution_params(self, state: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """Mean and log-std of the Gaussian over ``s' - s``."""
+        delta_mean, log_std = self.net(th.cat([state, actions], dim=1)).chunk(2, dim=-1)
+        return delta_mean, th.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX)
+
+    def forward(self, state: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        """The mean next planner state ``E[s' | s, a]``."""
+        return state + self.distribution_params(state, actions)[0]
+
+    def log_prob(self, state: th.Tensor, next_state: th.Tensor, actions: th.Tensor) -> th.Tensor:
+        """``log T(s' | s, a)`` of buffer transitions, shape ``(batch,)`` (the supervised loss is its negative)."""
+        return gaussian_log_prob(next_state - state, *self.distribution_params(state, actions))
+
+
 class UDPOPolicy(BasePolicy):
     """
     Decoupled goal-conditioned policy ``pi(a | s, g) = E_{s' ~ h(.|s, g)} [I(a | s, s')]`` with twin Q critics.
@@ -283,10 +318,13 @@ class UDPOPolicy(BasePolicy):
     :param freeze_state_planner: hold the state planner fixed (a planner transferred from a source, see
         :meth:`load_state_planner`): UDPO then trains only the inverse dynamics and the critics
     :param use_sde: must be False (accepted because SAC writes it into the ``policy_kwargs`` dict it is given)
+    :param forward_dynamics: build a forward dynamics model ``T(s' | s, a)`` (``forward_dynamics`` attribute, same
+        architecture as the inverse dynamics, trained with its learning rate); UDPO sets it from its ``plan_target``
     """
 
     state_planner: StatePlanner
     inverse_dynamics: InverseDynamics
+    forward_dynamics: ForwardDynamics | None
     critic: ContinuousCritic
     critic_target: ContinuousCritic
 
@@ -307,6 +345,7 @@ class UDPOPolicy(BasePolicy):
         inverse_dynamics_lr_schedule: Schedule | None = None,
         freeze_state_planner: bool = False,
         use_sde: bool = False,
+        forward_dynamics: bool = False,
     ):
         if use_sde:
             raise ValueError(NO_SDE)
@@ -333,6 +372,7 @@ class UDPOPolicy(BasePolicy):
         self.planner_lr_schedule = planner_lr_schedule
         self.inverse_dynamics_lr_schedule = inverse_dynamics_lr_schedule
         self.freeze_state_planner = freeze_state_planner
+        self.use_forward_dynamics = forward_dynamics
         self._build(lr_schedule)
 
     def _build(self, lr_schedule: Schedule) -> None:
@@ -349,6 +389,14 @@ class UDPOPolicy(BasePolicy):
         self.inverse_dynamics = InverseDynamics(
             self.state_planner.state_dim, get_action_dim(self.action_space), self.inverse_dynamics_arch, self.activation_fn
         )
+        self.forward_dynamics = None
+        if self.use_forward_dynamics:
+            self.forward_dynamics = ForwardDynamics(
+                self.state_planner.state_dim,
+                get_action_dim(self.action_space),
+                self.inverse_dynamics_arch,
+                self.activation_fn,
+            )
         self.critic = self._make_critic()
         self.critic_target = self._make_critic()
         self.critic_target.load_state_dict(self.critic.state_dict())
@@ -357,6 +405,7 @@ class UDPOPolicy(BasePolicy):
             self,
             *self.state_planner.modules(),
             *self.inverse_dynamics.modules(),
+            *(self.forward_dynamics.modules() if self.forward_dynamics is not None else ()),
             *self.critic.modules(),
         ]
         if self.freeze_state_planner:
@@ -372,6 +421,12 @@ class UDPOPolicy(BasePolicy):
             lr=(self.inverse_dynamics_lr_schedule or lr_schedule)(1),
             **self.optimizer_kwargs,  # type: ignore[call-arg]
         )
+        if self.forward_dynamics is not None:
+            self.forward_dynamics.optimizer = self.optimizer_class(
+                self.forward_dynamics.parameters(),
+                lr=(self.inverse_dynamics_lr_schedule or lr_schedule)(1),
+                **self.optimizer_kwargs,  # type: ignore[call-arg]
+            )
         self.critic.optimizer = self.optimizer_class(
             self.critic.parameters(),
             lr=lr_schedule(1),
@@ -406,6 +461,7 @@ class UDPOPolicy(BasePolicy):
             features_extractor_class=self.features_extractor_class,
             features_extractor_kwargs=self.features_extractor_kwargs,
             freeze_state_planner=self.freeze_state_planner,
+            forward_dynamics=self.use_forward_dynamics,
         )
         return data
 
