@@ -69,10 +69,11 @@ def test_goal_planner_load_refuses_other_files(planner: GoalPlanner, tmp_path: P
     th.save(th.nn.Linear(2, 2).state_dict(), tmp_path / "state_dict.pt")
     with zipfile.ZipFile(tmp_path / "archive.zip", "w") as archive:
         archive.writestr("data.txt", "not a planner")
-    (tmp_path / "garbage.pt").write_bytes(os.urandom(256))
+    (tmp_path / "garbage.pt").write_bytes(np.random.default_rng(0).bytes(256))
+    (tmp_path / "pickle_header.pt").write_bytes(b"\x80\x04" + np.random.default_rng(1).bytes(64))
     (tmp_path / "empty.pt").write_bytes(b"")
     SAC("MlpPolicy", "Pendulum-v1").save(tmp_path / "model.zip")
-    for name in ("other.pt", "state_dict.pt", "archive.zip", "garbage.pt", "empty.pt", "model.zip"):
+    for name in ("other.pt", "state_dict.pt", "archive.zip", "garbage.pt", "pickle_header.pt", "empty.pt", "model.zip"):
         with pytest.raises(ValueError, match=r"is not a goal planner written by GoalPlanner\.save"):
             GoalPlanner.load(tmp_path / name)
     with pytest.raises(FileNotFoundError, match="No goal planner file"):

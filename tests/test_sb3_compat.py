@@ -78,7 +78,7 @@ def test_spaces_learn_predict(algo: type, space_name: str) -> None:
     assert action.shape == (2,)
     batch = {k: np.stack([v, v]) for k, v in obs.items()} if isinstance(obs, dict) else np.stack([obs, obs])
     actions, _ = model.predict(batch, deterministic=True)
-    np.testing.assert_allclose(actions[0], actions[1], rtol=1e-6)
+    np.testing.assert_allclose(actions[0], actions[1], rtol=1e-5, atol=1e-6)  # batch rows: float reordering
     if algo is UDPO:
         assert model.predict_next_state(obs).shape == (model.policy.state_dim,)
 

@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import os
-import pickle
 import warnings
-import zipfile
 from typing import Any
 
 import gymnasium as gym
@@ -198,7 +196,7 @@ class GoalPlanner(nn.Module):
         not_a_planner = f"{path} is not a goal planner written by GoalPlanner.save"
         try:
             data = th.load(path, map_location=device, weights_only=True)
-        except (pickle.UnpicklingError, RuntimeError, EOFError, zipfile.BadZipFile, ValueError) as error:
+        except Exception as error:  # torch raises many types for files it cannot read (pickle, zip, unicode, EOF...)
             raise ValueError(f"{not_a_planner}: torch cannot read it ({type(error).__name__}).") from error
         missing = {"state_dict", "net_arch", "activation_fn", "metadata"} - set(data) if isinstance(data, dict) else None
         if missing is None or missing or "goal_dim" not in data["metadata"]:
