@@ -82,14 +82,17 @@ def test_demo_budget_is_named() -> None:
 def test_verdict() -> None:
     def result(rates: list[float]) -> dict:
         steps = [100 * (index + 1) for index in range(len(rates))]
-        return {"runs": [{"success_rate": rates}], "mean": {"timesteps": steps, "success_rate": rates}}
+        reached = next((step for step, rate in zip(steps, rates, strict=True) if rate >= 0.5), None)
+        return {"runs": [{"success_rate": rates}], "mean": {"timesteps": steps, "success_rate": rates, "steps_to_50": reached}}
 
     her = result([0.0, 0.0, 0.2, 0.5])
     assert verdict(result([0.0, 0.6, 1.0, 1.0]), her) == "confirmed: 0.50 success (HER's final: 0.50) at 0.50x HER's steps"
     later = verdict(result([0.0, 0.0, 0.6, 1.0]), her)
     assert later.startswith("not at this budget: 0.50 success (HER's final: 0.50) at 0.75x")
     assert verdict(result([0.0, 0.0, 0.0, 0.1]), her).startswith("refuted")
-    assert verdict(result([0.0] * 4), result([0.0] * 4)) == "not at this budget (neither learned)"
+    assert verdict(result([0.0] * 4), result([0.0] * 4)) == "not at this budget (neither reached 50% success)"
+    chance = result([0.0, 0.2, 0.4, 0.1])  # e.g. Push agents that never move the object
+    assert verdict(chance, chance) == "not at this budget (neither reached 50% success)"
     assert verdict(result([0.0, 0.5, 1.0, 1.0]), result([0.0] * 4)).startswith("confirmed")
 
 

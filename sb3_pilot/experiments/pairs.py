@@ -15,8 +15,9 @@ Verdict, per PILoT method against SAC+HER (``level`` = HER's final mean success,
 evaluated step where PILoT's mean success reaches ``level``, over HER's last step):
 
 - ``confirmed``: ``ratio <= 0.5`` (the issue's goal: HER's final success in at most half HER's steps);
-- ``not at this budget``: neither method reached 0.1 final success, or PILoT reaches ``level`` but later than half
-  HER's steps, or never but within 0.2 of HER's final success;
+- ``not at this budget``: neither method's mean success reached 0.5 (below that, success can be chance: on Push a
+  goal drawn at the object's start counts without moving it), or PILoT reaches ``level`` but later than half HER's
+  steps, or never but within 0.2 of HER's final success;
 - ``refuted at this budget``: PILoT's final success is below HER's by more than 0.2.
 """
 
@@ -87,8 +88,9 @@ def verdict(pilot: dict[str, Any], her: dict[str, Any]) -> str:
     """The verdict of one PILoT method against SAC+HER, from their ``summary.json`` entries (see the module doc)."""
     pilot_final = float(np.mean([run["success_rate"][-1] for run in pilot["runs"]]))
     her_final = float(np.mean([run["success_rate"][-1] for run in her["runs"]]))
-    if max(pilot_final, her_final) < 0.1:
-        return "not at this budget (neither learned)"
+    if pilot["mean"]["steps_to_50"] is None and her["mean"]["steps_to_50"] is None:
+        # on Push, a goal drawn at the object's start is a success without moving: 0.1-0.4 is no learning
+        return "not at this budget (neither reached 50% success)"
     level = max(her_final, 0.1)
     her_steps = her["mean"]["timesteps"][-1]
     reached = next(
