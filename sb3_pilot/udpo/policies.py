@@ -224,7 +224,42 @@ class StatePlanner(BaseModel):
         return data
 
 
-class InverseDynamics(nn.Module):
+class DynamicsModel(nn.Module):
+    """
+    An MLP from ``(state, action)``-derived inputs to a diagonal Gaussian (mean and clamped log-std): what the inverse
+    and the forward dynamics share, each with its own optimizer.
+
+    :param state_dim: Size of the planner state
+    :param action_dim: Size of the action
+    :param input_dim: Size of the network's input
+    :param output_dim: Size of the Gaussian
+    :param net_arch: Hidden layer sizes
+    :param activation_fn: Activation function
+    """
+
+    optimizer: th.optim.Optimizer
+
+    def __init__(
+        self,
+        state_dim: int,
+        action_dim: int,
+        input_dim: int,
+        output_dim: int,
+        net_arch: list[int],
+        activation_fn: type[nn.Module] = nn.ReLU,
+    ):
+        super().__init__()
+        self.state_dim = state_dim
+        self.action_dim = action_dim
+        self.net = nn.Sequential(*create_mlp(input_dim, 2 * output_dim, net_arch, activation_fn))
+
+    def gaussian(self, inputs: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """Mean and log-std (clamped as SAC's actor does) of the Gaussian at ``inputs``."""
+        mean, log_std = self.net(inputs).chunk(2, dim=-1)
+        return mean, th.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX)
+
+
+class InverseDynamics(DynamicsModel):
     """
     Inverse dynamics ``I(a | s, s')`` (paper eq. "inverse-dynamics"): a tanh-squashed diagonal Gaussian over the
     (normalised) action that takes the planner state from ``s`` to ``s'``. Its input is ``[s, s' - s]``.
@@ -235,18 +270,12 @@ class InverseDynamics(nn.Module):
     :param activation_fn: Activation function
     """
 
-    optimizer: th.optim.Optimizer
-
     def __init__(self, state_dim: int, action_dim: int, net_arch: list[int], activation_fn: type[nn.Module] = nn.ReLU):
-        super().__init__()
-        self.state_dim = state_dim
-        self.action_dim = action_dim
-        self.net = nn.Sequential(*create_mlp(2 * state_dim, 2 * action_dim, net_arch, activation_fn))
+        super().__init__(state_dim, action_dim, 2 * state_dim, action_dim, net_arch, activation_fn)
 
     def distribution_params(self, state: th.Tensor, next_state: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
         """Mean and log-std of the pre-squash Gaussian over actions."""
-        mean, log_std = self.net(th.cat([state, next_state - state], dim=1)).chunk(2, dim=-1)
-        return mean, th.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX)
+        return self.gaussian(th.cat([state, next_state - state], dim=1))
 
     def forward(self, state: th.Tensor, next_state: th.Tensor, deterministic: bool = False) -> tuple[th.Tensor, th.Tensor]:
         """Squashed action in ``[-1, 1]`` and its log-probability."""
@@ -259,7 +288,7 @@ class InverseDynamics(nn.Module):
         return squashed_gaussian_log_prob(th.atanh(actions.clamp(-1.0 + eps, 1.0 - eps)), mean, log_std)
 
 
-class ForwardDynamics(nn.Module):
+class ForwardDynamics(DynamicsModel):
     """
     Forward dynamics ``T(s' | s, a)``: a diagonal Gaussian over the change of the planner state ``s' - s`` after the
     (normalised, squashed) action ``a``, fitted by maximum likelihood on buffer transitions. UDPO uses its mean to
@@ -272,18 +301,12 @@ class ForwardDynamics(nn.Module):
     :param activation_fn: Activation function
     """
 
-    optimizer: th.optim.Optimizer
-
     def __init__(self, state_dim: int, action_dim: int, net_arch: list[int], activation_fn: type[nn.Module] = nn.ReLU):
-        super().__init__()
-        self.state_dim = state_dim
-        self.action_dim = action_dim
-        self.net = nn.Sequential(*create_mlp(state_dim + action_dim, 2 * state_dim, net_arch, activation_fn))
+        super().__init__(state_dim, action_dim, state_dim + action_dim, state_dim, net_arch, activation_fn)
 
     def distribution_params(self, state: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
         """Mean and log-std of the Gaussian over ``s' - s``."""
-        delta_mean, log_std = self.net(th.cat([state, actions], dim=1)).chunk(2, dim=-1)
-        return delta_mean, th.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX)
+        return self.gaussian(th.cat([state, actions], dim=1))
 
     def forward(self, state: th.Tensor, actions: th.Tensor) -> th.Tensor:
         """The mean next planner state ``E[s' | s, a]``."""
