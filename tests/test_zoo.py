@@ -21,6 +21,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 from sb3_pilot import UDPO
 from sb3_pilot.distill import GoalPlanner
 from sb3_pilot.envs import PILOT_ENV_IDS
+from sb3_pilot.experiments.evaluation import load_final_distances
 from sb3_pilot.experiments.zoo import (
     INVERSE_DYNAMICS_INTERVAL_GRID,
     PLANNER_COEF_GRID,
@@ -328,8 +329,12 @@ def test_robotics_task_under_its_own_id(tmp_path: Path, algo: str) -> None:
     assert _with_conf_file(["--algo", algo, "--env", "FetchReach-v4"])[-1] == str(HYPERPARAMS / f"{algo}.yml")
     run(
         *("-m", "sb3_pilot.experiments.zoo", "train", "--algo", algo, "--env", "FetchReach-v4"),
-        *("--gym-packages", "gymnasium_robotics", "-n", "150", "-f", "logs", "--eval-freq", "-1", "--num-threads", "1"),
-        *("-params", "learning_starts:100", "batch_size:32"),
+        *("--gym-packages", "gymnasium_robotics", "-n", "150", "-f", "logs", "--num-threads", "1"),
+        *("--eval-freq", "75", "--eval-episodes", "2", "-params", "learning_starts:100", "batch_size:32", "normalize:False"),
         cwd=tmp_path,
     )
-    assert (tmp_path / "logs" / algo / "FetchReach-v4_1" / "FetchReach-v4.zip").is_file()
+    run_dir = tmp_path / "logs" / algo / "FetchReach-v4_1"
+    assert (run_dir / "FetchReach-v4.zip").is_file()
+    # the zoo's evaluation (GoalEvalCallback) also records the final distance to the goal, raw float64 observations
+    distances = load_final_distances(run_dir / "evaluations.npz")
+    assert distances is not None and len(distances) == 2 and np.all((distances > 0) & (distances < 1.0))

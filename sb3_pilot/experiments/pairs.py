@@ -5,11 +5,10 @@ seeds), and a verdict on the paper's claim ("HER+PILoT learns the target faster 
 
     python -m sb3_pilot.experiments.pairs [ROOT=zoo_runs] [CHALLENGE ...] [--episodes 10]
 
-Final distance: the zoo's evaluations record success only, so each method's final model (``models/``, kept where
-the challenge ran) is evaluated again for ``episodes`` deterministic episodes on the target task, seeded as the
-guidance stage is (``10_000 * seed + episode``); ``||achieved_goal - desired_goal||`` at the last step of each
-episode, averaged, goes to ``<root>/<challenge>/final_eval.json`` (reused if present, so the table can be rebuilt
-without the models).
+Final distance: the mean ``||achieved_goal - desired_goal||`` at the end of the last evaluation's episodes, as
+``GoalEvalCallback`` records it in the zoo's ``evaluations.npz``; runs made before that callback existed have their
+final model (``models/``) played again for ``episodes`` deterministic episodes (``play_episodes``). Either goes to
+``<root>/<challenge>/final_eval.json`` (reused if present, so the table can be rebuilt without the models).
 
 Verdict, per PILoT method against SAC+HER (``level`` = HER's final mean success, at least 0.1; ``ratio`` = the first
 evaluated step where PILoT's mean success reaches ``level``, over HER's last step):
@@ -32,7 +31,8 @@ import gymnasium as gym
 import numpy as np
 
 from sb3_pilot.experiments.challenges.definitions import CHALLENGES, HER
-from sb3_pilot.experiments.challenges.stages import load_zoo_model
+from sb3_pilot.experiments.challenges.stages import load_zoo_model, play_episodes, zoo_run_dir
+from sb3_pilot.experiments.evaluation import load_final_distances
 from sb3_pilot.experiments.zoo import register
 
 FINAL_EVAL = "final_eval.json"
@@ -61,24 +61,25 @@ def evaluate_final(run_dir: Path, episodes: int = 10) -> dict[str, Any]:
             model_path = stage.output(run_dir / "models" / key / stage.name)
             if not model_path.exists():
                 continue
-            model, vec_normalize = load_zoo_model(model_path)
-            env = gym.make(stage.env_id, **getattr(stage, "env_kwargs", {}))
-            successes, distances = [], []
-            for episode in range(episodes):
-                observation, _ = env.reset(seed=10_000 * seed + episode)
-                done, info = False, {}
-                while not done:
-                    seen = vec_normalize.normalize_obs(observation) if vec_normalize is not None else observation
-                    action, _ = model.predict(seen, deterministic=True)
-                    observation, _, terminated, truncated, info = env.step(action)
-                    done = terminated or truncated
-                successes.append(float(info["is_success"]))
-                distances.append(float(np.linalg.norm(observation["achieved_goal"] - observation["desired_goal"])))
-            env.close()
+            evaluations = zoo_run_dir(run_dir / "models" / key / stage.name, stage.algo, stage.env_id) / "evaluations.npz"
+            distances = load_final_distances(evaluations) if evaluations.exists() else None
+            if distances is not None:  # recorded by GoalEvalCallback at every evaluation: its last one
+                with np.load(evaluations) as data:
+                    successes = list(data["successes"][-1])
+                distances, episodes_used = [float(distances[-1])], len(successes)
+            else:  # a run from before GoalEvalCallback: play the final model again
+                model, vec_normalize = load_zoo_model(model_path)
+                env = gym.make(stage.env_id, **getattr(stage, "env_kwargs", {}))
+                successes, distances = [], []
+                for observation, info in play_episodes(model, vec_normalize, env, episodes, seed):
+                    successes.append(float(info["is_success"]))
+                    distances.append(float(np.linalg.norm(observation["achieved_goal"] - observation["desired_goal"])))
+                env.close()
+                episodes_used = episodes
             results.setdefault(stage.method, {})[key] = {
                 "success": float(np.mean(successes)),
                 "distance": float(np.mean(distances)),
-                "episodes": episodes,
+                "episodes": episodes_used,
             }
             path.write_text(json.dumps(results, indent=1))
     return results

@@ -16,7 +16,7 @@ from __future__ import annotations
 import hashlib
 import json
 import shlex
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -139,6 +139,30 @@ def load_zoo_model(model_path: Path, env: DummyVecEnv | None = None) -> tuple[Ba
         custom = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}
         return ALGOS[algo].load(model_path, device="cpu", custom_objects=custom), vec_normalize
     return ALGOS[algo].load(model_path, env=vec_normalize or env, device="cpu"), vec_normalize
+
+
+def play_episodes(
+    model: BaseAlgorithm, vec_normalize: VecNormalize | None, env: gym.Env, episodes: int, seed: int
+) -> Iterator[tuple[dict[str, np.ndarray], dict[str, Any]]]:
+    """
+    Deterministic episodes of ``model`` on ``env``, episode ``i`` reset with seed ``10_000 * seed + i``.
+
+    :param model: the trained model
+    :param vec_normalize: its frozen ``VecNormalize`` (observations are normalised for it), or None
+    :param env: the env (raw observations)
+    :param episodes: number of episodes
+    :param seed: seed of the evaluation
+    :return: for each episode, once it has ended, its last observation and info
+    """
+    for episode in range(episodes):
+        observation, _ = env.reset(seed=10_000 * seed + episode)
+        done, info = False, {}
+        while not done:
+            seen = vec_normalize.normalize_obs(observation) if vec_normalize is not None else observation
+            action, _ = model.predict(seen, deterministic=True)
+            observation, _, terminated, truncated, info = env.step(action)
+            done = terminated or truncated
+        yield observation, info
 
 
 def _env_id(model_path: Path) -> str:
@@ -320,14 +344,7 @@ class Guidance:
         controller, vec_normalize = load_zoo_model(ctx.outputs[self.controller])
         env = LandmarkGuidance(gym.make(self.env_id), GoalPlanner.load(ctx.outputs[self.planner]), horizon=self.horizon)
         successes, episodes = [], []
-        for episode in range(ctx.budget.eval_episodes):
-            observation, _ = env.reset(seed=10_000 * ctx.seed + episode)
-            done, info = False, {}
-            while not done:
-                seen = vec_normalize.normalize_obs(observation) if vec_normalize is not None else observation
-                action, _ = controller.predict(seen, deterministic=True)
-                observation, _, terminated, truncated, info = env.step(action)
-                done = terminated or truncated
+        for _, info in play_episodes(controller, vec_normalize, env, ctx.budget.eval_episodes, ctx.seed):
             successes.append(float(info["is_success"]))
             episodes.append(
                 {
