@@ -72,6 +72,7 @@ def main() -> None:
     parser.add_argument("--eval-episodes", type=int, default=20)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1: robust to a busy 2-core machine)")
     parser.add_argument("--planner-coef", type=float, default=1e-2)
+    parser.add_argument("--plan-target", default="buffer", choices=("buffer", "policy"), help="UDPO's plan_target")
     parser.add_argument("--inverse-dynamics-interval", type=int, default=200)
     parser.add_argument("--inverse-dynamics-gradient-steps", type=int, default=50)
     parser.add_argument("--inverse-dynamics-learning-rate", type=float, default=1e-3)
@@ -79,6 +80,7 @@ def main() -> None:
     th.set_num_threads(args.threads)
     udpo_kwargs = dict(
         planner_coef=args.planner_coef,
+        plan_target=args.plan_target,
         inverse_dynamics_interval=args.inverse_dynamics_interval,
         inverse_dynamics_gradient_steps=args.inverse_dynamics_gradient_steps,
         inverse_dynamics_learning_rate=args.inverse_dynamics_learning_rate,
