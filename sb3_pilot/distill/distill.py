@@ -10,7 +10,9 @@ import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.buffers import DictReplayBuffer
 from stable_baselines3.common.logger import HumanOutputFormat, Logger
-from stable_baselines3.common.vec_env import VecNormalize
+from stable_baselines3.common.type_aliases import GymEnv
+from stable_baselines3.common.vec_env import VecEnv, VecNormalize, unwrap_vec_normalize
+from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
 from tqdm.auto import tqdm
 
 from sb3_pilot.common.distributions import gaussian_expected_nll
@@ -33,17 +35,13 @@ def goal_scaling(vec_normalize: VecNormalize | None, goal_dim: int) -> tuple[np.
     return np.ones(goal_dim, dtype=np.float32), np.zeros(goal_dim, dtype=np.float32)
 
 
-#: What the distillation labels are (see :func:`teacher_goal_distribution`)
-LABELS = ("reached", "planned")
-
-
-def default_labels(model: UDPO) -> str:
-    """``"reached"`` if the teacher has a forward dynamics model (``plan_target="policy"``), else ``"planned"``."""
-    return "reached" if model.policy.forward_dynamics is not None else "planned"
+#: What the distillation labels are: real next goals of the teacher's episodes (:func:`rollout_pairs`), or the
+#: teacher's model of them (:func:`teacher_goal_distribution`)
+LABELS = ("rollouts", "reached", "planned")
 
 
 def teacher_goal_distribution(
-    model: UDPO, observations: dict[str, np.ndarray], chunk_size: int = 4096, labels: str | None = None
+    model: UDPO, observations: dict[str, np.ndarray], chunk_size: int = 4096, labels: str = "planned"
 ) -> tuple[np.ndarray, np.ndarray]:
     """
     The teacher's next goal from states ``s`` for targets ``g_target``, in raw coordinates:
@@ -56,12 +54,11 @@ def teacher_goal_distribution(
     :param model: the teacher (a trained ``UDPO`` on a Dict goal env)
     :param observations: raw observations (as the replay buffer stores them), batched
     :param chunk_size: forward pass size
-    :param labels: ``"reached"`` or ``"planned"``; None: :func:`default_labels`
+    :param labels: ``"reached"`` or ``"planned"``
     :return: mean and standard deviation of the teacher's (Gaussian) next goal, shape (n, goal_dim) each
     """
-    labels = default_labels(model) if labels is None else labels
-    if labels not in LABELS:
-        raise ValueError(f"labels must be one of {LABELS}, got {labels!r}.")
+    if labels not in ("reached", "planned"):
+        raise ValueError(f'labels must be "reached" or "planned" here, got {labels!r}.')
     forward_dynamics = model.policy.forward_dynamics
     if labels == "reached" and forward_dynamics is None:
         raise ValueError('labels="reached" needs a teacher trained with plan_target="policy" (its forward dynamics).')
@@ -90,7 +87,7 @@ def teacher_goal_distribution(
     return np.concatenate(means) * scale + offset, np.concatenate(stds) * scale
 
 
-def _check_teacher(model: UDPO) -> DictReplayBuffer:
+def _check_teacher(model: UDPO) -> None:
     if not isinstance(model.observation_space, spaces.Dict) or model.policy.goal_slice is None:
         raise ValueError(
             "distill_goal_planner needs a UDPO trained on a goal env (Dict observation with 'achieved_goal' and "
@@ -98,11 +95,14 @@ def _check_teacher(model: UDPO) -> DictReplayBuffer:
         )
     if "desired_goal" not in model.observation_space.spaces:
         raise ValueError("distill_goal_planner needs 'desired_goal' in the observation: it is the target goal g_target.")
+
+
+def _teacher_buffer(model: UDPO) -> DictReplayBuffer:
     buffer = model.replay_buffer
     if not isinstance(buffer, DictReplayBuffer) or (buffer.pos == 0 and not buffer.full):
         raise ValueError(
-            "distill_goal_planner samples states and target goals from the model's replay buffer, which is empty "
-            "(a loaded model has none: train it, or call model.load_replay_buffer(path) first)."
+            "labels 'planned' and 'reached' sample states and target goals from the model's replay buffer, which is "
+            "empty (a loaded model has none: train it, or call model.load_replay_buffer(path) first)."
         )
     return buffer
 
@@ -158,19 +158,97 @@ def sample_buffer_pairs(buffer: DictReplayBuffer, n_samples: int, rng: np.random
     return observations
 
 
-def distillation_data(model: UDPO, n_samples: int, seed: int, labels: str | None = None) -> DistillationData:
+def rollout_pairs(
+    model: UDPO, env: GymEnv, n_samples: int, seed: int, deterministic: bool = False
+) -> tuple[dict[str, np.ndarray], np.ndarray, float]:
     """
-    Draw ``n_samples`` pairs from the teacher's buffer and label them with the teacher's next-goal distribution.
+    Run the teacher's policy ``pi(a | s, g_target) = I(a | s, h(s' | s, g_target))`` in ``env`` for ``n_samples`` steps
+    and record, at every step, the pair ``(g, g_target)`` and the goal ``phi(s_{t+1})`` the step actually reached:
+    what the teacher's plan led to, in raw goal coordinates.
+
+    :param model: the teacher
+    :param env: the env the teacher acts in (observations as the policy sees them: with its ``VecNormalize``, if
+        any, whose statistics are left unchanged)
+    :param n_samples: number of steps (over all sub-environments)
+    :param seed: seed of the env's resets and of the sampled actions
+    :param deterministic: act with the mean plan's action ``I(s, E[h])``; False samples actions from ``pi``
+    :return: raw observations ``s`` (with their ``desired_goal``), the raw achieved goals one step later, and the
+        success rate of the episodes that ended
+    """
+    venv = env if isinstance(env, VecEnv) else model._wrap_env(env)
+    vec_normalize = unwrap_vec_normalize(venv)
+    was_training = vec_normalize is not None and vec_normalize.training
+    if vec_normalize is not None:
+        vec_normalize.training = False
+
+    def raw(observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return vec_normalize.unnormalize_obs(observations) if vec_normalize is not None else observations  # type: ignore[return-value]
+
+    venv.seed(seed)
+    obs = venv.reset()
+    assert isinstance(obs, dict)
+    steps: list[dict[str, np.ndarray]] = []
+    next_goals: list[np.ndarray] = []
+    successes: list[float] = []
+    with th.random.fork_rng(devices=[]):
+        th.manual_seed(seed)
+        for _ in range(-(-n_samples // venv.num_envs)):
+            actions, _ = model.predict(obs, deterministic=deterministic)
+            next_obs, _, dones, infos = venv.step(actions)
+            assert isinstance(next_obs, dict)
+            reached = next_obs["achieved_goal"].copy()
+            for index in np.flatnonzero(dones):  # the env reset: the step's real next state is the terminal observation
+                reached[index] = infos[index]["terminal_observation"]["achieved_goal"]
+                successes.append(float(infos[index].get("is_success", np.nan)))
+            steps.append(raw(obs))
+            next_goals.append(raw({**obs, "achieved_goal": reached})["achieved_goal"])
+            obs = next_obs
+    if vec_normalize is not None:
+        vec_normalize.training = was_training
+    if venv is model.get_env():  # its episodes were cut: the next learn() starts new ones
+        model._last_obs = None  # type: ignore[assignment]
+        if isinstance(model.replay_buffer, HerReplayBuffer):
+            model.replay_buffer.truncate_last_trajectory()
+    observations = {key: np.concatenate([step[key] for step in steps])[:n_samples] for key in steps[0]}
+    return observations, np.concatenate(next_goals)[:n_samples], float(np.nanmean(successes)) if successes else np.nan
+
+
+def distillation_data(
+    model: UDPO,
+    n_samples: int,
+    seed: int,
+    labels: str = "rollouts",
+    env: GymEnv | None = None,
+    deterministic: bool = False,
+) -> tuple[DistillationData, dict[str, float]]:
+    """
+    ``n_samples`` pairs ``(g, g_target)`` labelled with the teacher's next goal: real steps of its episodes in
+    ``env`` (``labels="rollouts"``, :func:`rollout_pairs`, a label of standard deviation 0), or drawn from its buffer
+    (:func:`sample_buffer_pairs`) and labelled with its next-goal distribution (:func:`teacher_goal_distribution`).
 
     :param model: the teacher
     :param n_samples: number of pairs
-    :param seed: seed of the draw
-    :param labels: see :func:`teacher_goal_distribution`
+    :param seed: seed of the draw (or of the env's resets)
+    :param labels: ``"rollouts"``, ``"reached"`` or ``"planned"``
+    :param env: the env of the rollouts (default: the model's)
+    :param deterministic: the rollouts' actions (see :func:`rollout_pairs`)
+    :return: the pairs, and facts about them for the planner's metadata
     """
-    observations = sample_buffer_pairs(_check_teacher(model), n_samples, np.random.default_rng(seed))
-    teacher_mean, teacher_std = teacher_goal_distribution(model, observations, labels=labels)
+    if labels not in LABELS:
+        raise ValueError(f"labels must be one of {LABELS}, got {labels!r}.")
+    facts: dict[str, float] = {}
+    if labels == "rollouts":
+        env = model.get_env() if env is None else env
+        if env is None:
+            raise ValueError('labels="rollouts" runs the teacher in an env: pass env=, or load the model with one.')
+        observations, teacher_mean, facts["rollout_success"] = rollout_pairs(model, env, n_samples, seed, deterministic)
+        teacher_std = np.zeros_like(teacher_mean)
+    else:
+        observations = sample_buffer_pairs(_teacher_buffer(model), n_samples, np.random.default_rng(seed))
+        teacher_mean, teacher_std = teacher_goal_distribution(model, observations, labels=labels)
     arrays = (observations["achieved_goal"], observations["desired_goal"], teacher_mean, teacher_std)
-    return DistillationData(*(th.as_tensor(array, device=model.device, dtype=th.float32) for array in arrays))
+    data = DistillationData(*(th.as_tensor(array, device=model.device, dtype=th.float32) for array in arrays))
+    return data, facts
 
 
 def distillation_loss(planner: GoalPlanner, batch: DistillationData) -> th.Tensor:
@@ -255,42 +333,61 @@ def distill_goal_planner(
     logger: Logger | None = None,
     log_interval: int = 1000,
     verbose: int = 0,
-    labels: str | None = None,
+    labels: str = "rollouts",
+    env: GymEnv | None = None,
+    deterministic: bool = False,
 ) -> GoalPlanner:
     """
     Distil a trained UDPO's state planner ``h(s' | s, g_target)`` (the teacher) into a goal planner
     ``f(g' | g, g_target)`` (the student) by maximum likelihood, paper eq. "distill".
 
-    Data (:func:`distillation_data`): states ``s ~ B`` are drawn from the model's replay buffer and target goals
-    ``g_target ~ p_g`` independently from the desired goals stored in it, as the equation writes. The buffer is the
-    only data the teacher is accurate on (it was trained on it), it costs no env step, and it works for a model loaded
-    with its buffer. The label is ``phi(s')``, the achieved-goal slice of the teacher's planned next state, mapped back
-    to raw coordinates with the model's ``VecNormalize`` statistics (the buffer stores raw observations, the teacher
-    sees normalised ones). With ``labels="reached"`` (the default for a teacher trained with ``plan_target="policy"``)
-    the label is where the teacher's deterministic action for its plan leads, as its forward dynamics model predicts
-    it, rather than the plan itself (see :func:`teacher_goal_distribution`). The loss (:func:`distillation_loss`) is
-    the student's expected NLL of the teacher's Gaussian, in closed form.
+    Data (:func:`distillation_data`), by default (``labels="rollouts"``): the teacher's policy
+    ``pi(a | s, g_target) = I(a | s, h(s' | s, g_target))`` runs ``n_samples`` steps in ``env`` towards the env's own
+    goals, and each step gives a pair ``(g, g_target)`` labelled with the goal ``phi(s_{t+1})`` that step really
+    reached. The student therefore
+    learns where the teacher's plan *leads* in one step, not the plan itself: **a landmark of the distilled planner is
+    an immediate one, a next goal the source agent reached in one step from ``g`` on its way to ``g_target``**, of a
+    real step's length and never inside a wall, whatever the balance of the teacher's actor loss and likelihood term
+    (UDPO's own plan ``E[h]`` over-reaches with a weak ``planner_coef`` and stalls with a strong one: see
+    ``zoo_runs/landmarks/``). It costs ``n_samples`` env steps and needs no replay buffer. Goals are the env's
+    desired goals rather than the paper's ``g_target ~ p_g`` drawn independently of ``s``: the teacher's episodes are
+    the only ones whose next goals are real.
+
+    With ``labels="planned"`` (the paper's eq. "distill") states ``s ~ B`` are drawn from the model's replay buffer
+    and target goals ``g_target ~ p_g`` independently from the desired goals stored in it, and the label is
+    ``phi(s')``, the achieved-goal slice of the teacher's planned next state, mapped back to raw coordinates with the
+    model's ``VecNormalize`` statistics (the buffer stores raw observations, the teacher sees normalised ones). With
+    ``labels="reached"`` (a teacher trained with ``plan_target="policy"``) the label is where the teacher's
+    deterministic action for its plan leads, as its forward dynamics model predicts it (see
+    :func:`teacher_goal_distribution`). The loss (:func:`distillation_loss`) is the student's expected NLL of the
+    teacher's Gaussian, in closed form (a real step is a Gaussian of standard deviation 0).
 
     A held-out share of the pairs measures the student against the teacher before and after training, stored in
     ``planner.metadata["holdout"]``: ``nll`` and ``landmark_distance`` (see :class:`HoldoutReport`), with
     ``*_untrained`` values for the initial student, and ``teacher_step`` (mean distance from ``g`` to the teacher's
     mean, for scale).
 
-    :param model: the trained UDPO teacher (on a Dict goal env, with its replay buffer)
-    :param n_samples: number of (state, target goal) pairs drawn from the buffer, held-out ones included
+    :param model: the trained UDPO teacher (on a Dict goal env; with its replay buffer for ``"planned"`` and
+        ``"reached"`` labels)
+    :param n_samples: number of (state, target goal) pairs (env steps for ``"rollouts"``), held-out ones included
     :param gradient_steps: number of gradient steps
     :param batch_size: minibatch size
     :param learning_rate: Adam learning rate
     :param net_arch: hidden layers of the goal planner (default ``[256, 256]``)
     :param holdout_fraction: share of the samples held out for the report
-    :param source_task: the task the teacher was trained on (default: read from ``model.get_env()``)
+    :param source_task: the task the teacher was trained on (default: read from ``env`` or ``model.get_env()``)
     :param seed: seed of the sampling, the initialisation and the minibatches (same seed, same planner)
     :param progress_bar: show a progress bar
     :param logger: SB3 logger for ``distill/*`` values (default: stdout if ``verbose >= 1``, else none)
     :param log_interval: gradient steps between two logger dumps
     :param verbose: verbosity level: 0 no output, 1 losses and report
-    :param labels: ``"reached"`` or ``"planned"`` (see :func:`teacher_goal_distribution`); None: ``"reached"`` for a
-        teacher with a forward dynamics model, else ``"planned"``
+    :param labels: ``"rollouts"`` (real next goals of the teacher's episodes), ``"planned"`` or ``"reached"`` (see
+        above)
+    :param env: the env of the ``"rollouts"`` (default: the model's; its current episodes end, and a model's next
+        ``learn()`` starts new ones): pass an evaluation env to leave the training env's episodes and monitor alone
+    :param deterministic: with ``"rollouts"``, act with the mean plan's action; by default actions are sampled from
+        the teacher's policy, so the labels are its next-goal *distribution*, realised (as eq. "distill" matches the
+        distribution of ``h``), and the states cover the neighbourhood of its paths that the chained landmarks visit
     :return: the distilled goal planner (on the model's device)
     """
     _check_teacher(model)
@@ -306,15 +403,17 @@ def distill_goal_planner(
             f"n_samples={n_samples} leaves {n_holdout} held-out and {n_samples - n_holdout} training samples: "
             f"need >= 1 and >= batch_size={batch_size}."
         )
+    if labels not in LABELS:
+        raise ValueError(f"labels must be one of {LABELS}, got {labels!r}.")
     if source_task is None:
-        if model.get_env() is None:
+        source_env = env if env is not None else model.get_env()
+        if source_env is None:
             raise ValueError("The model has no env to read the source task from: pass source_task=<its Gymnasium ID>.")
-        source_task = task_id(model.get_env())
+        source_task = task_id(source_env)
     if logger is None:
         logger = Logger(None, [HumanOutputFormat(sys.stdout)] if verbose >= 1 else [])
 
-    labels = default_labels(model) if labels is None else labels
-    data = distillation_data(model, n_samples, seed, labels)
+    data, facts = distillation_data(model, n_samples, seed, labels, env, deterministic)
     holdout, train = data.rows(slice(n_holdout)), data.rows(slice(n_holdout, None))
     generator = th.Generator(device=model.device).manual_seed(seed)
     holdout_labels = holdout.teacher_mean + holdout.teacher_std * th.randn(
@@ -329,6 +428,8 @@ def distill_goal_planner(
             "seed": seed,
             "teacher_num_timesteps": model.num_timesteps,
             "labels": labels,
+            **({"deterministic": deterministic} if labels == "rollouts" else {}),
+            **facts,
         }
         planner = GoalPlanner(data.achieved_goal.shape[1], net_arch, metadata=metadata).to(model.device)
     planner.set_scales(th.cat([train.achieved_goal, train.desired_goal]), train.teacher_mean - train.achieved_goal)

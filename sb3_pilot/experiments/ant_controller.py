@@ -312,7 +312,8 @@ def planner(args: argparse.Namespace) -> None:
         )
         model_path = zoo_model_path(args.log_folder, "udpo", SOURCE_ENV)
     print(f"distilling {model_path}")
-    teacher, _ = load_zoo_model(model_path, env=DummyVecEnv([lambda: gym.make(SOURCE_ENV)]))
+    # the env of the teacher's distillation rollouts: the goals it was trained on
+    teacher, _ = load_zoo_model(model_path, env=DummyVecEnv([lambda: gym.make(SOURCE_ENV, goal_distribution="uniform")]))
     assert isinstance(teacher, UDPO)
     teacher.load_replay_buffer(model_path.parent / "replay_buffer.pkl")
     goal_planner = distill_goal_planner(

@@ -232,10 +232,11 @@ def run(task: str, seed: int, steps: int, checkpoints: int, udpo_kwargs: dict[st
         final = evaluate(model, task, 20, 10_000)
         successes.append(final["success"])
     far = evaluate(model, task, 20, 20_000, far=True)
-    planner = distill_goal_planner(model, seed=seed)
+    planner = distill_goal_planner(model, seed=seed, env=Monitor(make_env(task)))
     path = imagined_path(planner, task)
     result["labels"] = planner.metadata["labels"]
-    if planner.metadata["labels"] == "reached":  # also the distillation of the plans themselves, for comparison
+    result["rollout_success"] = planner.metadata.get("rollout_success")
+    if planner.metadata["labels"] != "planned":  # also the distillation of the plans themselves, for comparison
         planned = distill_goal_planner(model, seed=seed, labels="planned")
         result["from_plans"] = {
             **imagined_path(planned, task),
