@@ -10,7 +10,9 @@ the distilled goal planner from the far start to the far goal, per seed:
   of ``h``), and ``teacher error`` the mean distance from that plan to the state actually reached;
 * ``planned step``: mean distance between consecutive landmarks of the distilled planner's 40-landmark imagined path
   from the far start, up to the first landmark within 1.0 of the far goal, and ``ratio`` = planned step / real step;
-* ``in walls``: how many of the 40 chained landmarks lie inside a wall (or outside the map);
+* ``in walls``: how many of the 40 chained landmarks lie inside a wall (or outside the map), and ``depth`` the
+  largest distance from one of them to the free space (a landmark on a wall's face is 0 deep: a teacher that slides
+  along walls gives labels on the face, and a smooth student lands on either side of it);
 * ``follow k``: a point that starts at the far start and at every step moves with the maze's own dynamics towards
   the k-th landmark chained from where it is (action ``clip((landmark - position) / 0.5, -1, 1)``) reaches the far
   goal (within 1.0) in at most 100 steps (1 or 0), for k = 1..5.
@@ -41,7 +43,7 @@ from stable_baselines3.common.monitor import Monitor
 from sb3_pilot.distill import GoalPlanner, distill_goal_planner
 from sb3_pilot.envs import register_envs
 from sb3_pilot.envs.core import GoalReachingMixin, goal_observation, goal_observation_space
-from sb3_pilot.envs.maze import Maze2DEnv, umaze_is_free
+from sb3_pilot.envs.maze import UMAZE_FREE_CELLS, UMAZE_SCALING, Maze2DEnv, umaze_cell_to_xy, umaze_is_free
 from sb3_pilot.udpo import UDPO
 
 # hyperparams/cpu/udpo.yml, Pilot/Maze2D-v0 (planner_coef left to UDPO's default unless --udpo-kwargs sets it)
@@ -137,9 +139,28 @@ class RoomsEnv(GoalReachingMixin, gym.Env):
         return obs, reward, False, False, info
 
 
+def wall_depth(points: np.ndarray, free_centers: np.ndarray, cell: float) -> np.ndarray:
+    """
+    :param points: xy points, shape (n, 2)
+    :param free_centers: centres of a map's free square cells
+    :param cell: their side
+    :return: each point's distance to the nearest free cell (0 in the free space)
+    """
+    outside = np.maximum(np.abs(points[:, None, :] - free_centers[None]) - cell / 2, 0.0)
+    return np.linalg.norm(outside, axis=-1).min(axis=1)
+
+
 TASKS: dict[str, dict[str, Any]] = {
-    "maze2d": dict(start=np.array([-4.0, 4.0]), goal=np.array([-4.0, -4.0]), is_free=umaze_is_free),
-    "rooms": dict(start=ROOMS.cell_xy(1, 1), goal=ROOMS.cell_xy(1, 5), is_free=ROOMS.is_free),
+    "maze2d": dict(
+        start=np.array([-4.0, 4.0]),
+        goal=np.array([-4.0, -4.0]),
+        is_free=umaze_is_free,
+        free_centers=np.array([umaze_cell_to_xy(cell) for cell in UMAZE_FREE_CELLS]),
+        cell=UMAZE_SCALING,
+    ),
+    "rooms": dict(
+        start=ROOMS.cell_xy(1, 1), goal=ROOMS.cell_xy(1, 5), is_free=ROOMS.is_free, free_centers=ROOMS.free_centers, cell=CELL
+    ),
 }
 
 
@@ -199,6 +220,7 @@ def imagined_path(planner: GoalPlanner, task: str) -> dict[str, Any]:
     return {
         "planned_step": float(steps[:n_steps].mean()),
         "in_walls": int((~TASKS[task]["is_free"](path[1:])).sum()),
+        "wall_depth": float(wall_depth(path[1:], TASKS[task]["free_centers"], TASKS[task]["cell"]).max()),
         "path_reaches_goal": bool(len(near)),
         "path_end": path[-1].round(2).tolist(),
         "path": path.round(2).tolist(),
@@ -272,7 +294,7 @@ def main() -> None:
     print(f"task={args.task} steps={args.steps} udpo_kwargs={udpo_kwargs}", flush=True)
     print(
         "| seed | success @checkpoints (far) | real step | teacher step / error | planned step | ratio | in walls "
-        "| follow k=1..5 |",
+        "(depth) | follow k=1..5 |",
         flush=True,
     )
     for seed in args.seeds:
@@ -282,14 +304,14 @@ def main() -> None:
             p = r["from_plans"]
             print(
                 f"  (distilled from the plans instead: planned step {p['planned_step']:.2f}, ratio "
-                f"{p['planned_step'] / r['real_step']:.2f}, in walls {p['in_walls']}/{HORIZON}, follow "
-                f"{' '.join(map(str, p['follow']))})",
+                f"{p['planned_step'] / r['real_step']:.2f}, in walls {p['in_walls']}/{HORIZON} ({p['wall_depth']:.2f}), "
+                f"follow {' '.join(map(str, p['follow']))})",
                 flush=True,
             )
         print(
             f"| {seed} | {' / '.join(f'{s:.2f}' for s in r['success'])} ({r['far_success']:.2f}) | {r['real_step']:.2f} "
             f"| {r['teacher_step']:.2f} / {r['teacher_error']:.2f} | {r['planned_step']:.2f} | {r['ratio']:.2f} "
-            f"| {r['in_walls']}/{HORIZON} | {' '.join(map(str, r['follow']))} |",
+            f"| {r['in_walls']}/{HORIZON} ({r['wall_depth']:.2f}) | {' '.join(map(str, r['follow']))} |",
             flush=True,
         )
 
