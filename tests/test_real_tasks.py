@@ -1,6 +1,7 @@
 """
 UDPO beside SAC on real registered tasks, not only on envs written for the tests: gymnasium-robotics' own goal tasks
-(float64 observations, no VecNormalize) and a gymnasium Box task: short learn, predict, save/load, planned next state.
+(float64 observations, no VecNormalize) and a gymnasium Box task: short learn, predict, save/load, planned next state,
+and on the goal tasks a distillation from the teacher's rollouts (the default labels) and from its plans.
 """
 
 import os
@@ -12,7 +13,7 @@ import numpy as np
 import pytest
 from stable_baselines3 import SAC, HerReplayBuffer
 
-from sb3_pilot import UDPO
+from sb3_pilot import UDPO, distill_goal_planner
 
 gym.register_envs(gymnasium_robotics)
 
@@ -56,4 +57,11 @@ def test_udpo_runs_where_sac_runs(env_id: str, max_episode_steps: int, steps: in
     assert planned.shape == (flat_state,) and np.all(np.isfinite(planned))
     if goal_env:  # the planner's goal slice is the achieved goal's coordinates
         assert loaded.policy.goal_slice == slice(flat_state - obs["achieved_goal"].size, flat_state)
+        distill = {"n_samples": 200, "gradient_steps": 20, "batch_size": 32, "net_arch": [16]}
+        for labels in ("rollouts", "planned"):  # rollouts in the model's own (float64) env, plans from its buffer
+            planner = distill_goal_planner(model, labels=labels, **distill)
+            landmark = planner.predict(obs["achieved_goal"], obs["desired_goal"])
+            assert planner.metadata["source_task"] == env_id and landmark.shape == obs["achieved_goal"].shape
+            assert np.all(np.isfinite(landmark))
+        model.learn(max_episode_steps, reset_num_timesteps=False)  # training goes on after the rollouts
     env.close()
