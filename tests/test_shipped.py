@@ -47,7 +47,7 @@ def test_shipped_files_guide_the_ant(controller: Path, planner: Path):
 
 def test_reuse_shipped_smoke(tmp_path: Path):
     """The zero-shot evaluation of the shipped files: no training stage, k and the switch rule in summary.json."""
-    challenges_main(["zero-shot-ant-maze", "--reuse-shipped", "--budget", "smoke", "--root", str(tmp_path)])
+    challenges_main(["zero-shot-ant-maze", "--reuse-shipped", "--budget", "smoke", "--root", str(tmp_path), "--plot"])
     challenge = REUSE_SHIPPED["zero-shot-ant-maze"]
     run_dir = tmp_path / challenge.name
     summary = json.loads((run_dir / "summary.json").read_text())
@@ -64,6 +64,7 @@ def test_reuse_shipped_smoke(tmp_path: Path):
     assert len(guidance["successes"]) == len(guidance["final_distances"]) == 2  # the smoke budget's episodes
     assert len(guidance["episodes"][0]["landmarks"]) == 51  # reset + 50 steps
     assert not list(run_dir.rglob("*.zip"))  # nothing trained, nothing copied
+    assert (run_dir / "landmarks.png").stat().st_size > 10_000  # the shipped planner's landmarks, the guided Ant
 
 
 def test_reuse_shipped_only_where_shipped(tmp_path: Path):

@@ -334,9 +334,9 @@ class Shipped:
 class Guidance:
     """
     Zero-shot transfer: a controller of an earlier stage, shown the landmarks of a distilled goal planner
-    (:class:`~sb3_pilot.LandmarkGuidance`), evaluated on ``env_id`` with no training there. The success rate, the
-    final distances to the goal and the first episode's path and landmarks go to ``guidance.json``. At a budget
-    with steps for this stage (``smoke``), episodes end after that many steps.
+    (:class:`~sb3_pilot.LandmarkGuidance`), evaluated on ``env_id`` with no training there. The planner's path, the
+    success rate, the final distances to the goal and each episode's path and landmarks go to ``guidance.json``. At
+    a budget with steps for this stage (``smoke``), episodes end after that many steps.
 
     :param name: stage name
     :param planner: the :class:`Distill` (or :class:`Shipped`) stage of the planner
@@ -416,6 +416,7 @@ class Guidance:
             )
         stage_dir.mkdir(parents=True, exist_ok=True)
         result = {
+            "planner": str(ctx.outputs[self.planner]),
             "timesteps": [0],
             "success_rate": [float(np.mean(successes))],
             "successes": successes,
