@@ -53,9 +53,12 @@ def test_reuse_shipped_smoke(tmp_path: Path):
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["challenge"] == challenge.name and summary["seeds"] == [0]
     assert set(summary["stages"]) == {"seed_0/distill", "seed_0/controller", "seed_0/pilot"}
+    shipped = "<repo>/zoo_runs/zero-shot-ant-maze/controller/"  # stored relative to the repository, as run folders are
+    assert summary["stages"]["seed_0/controller"]["config"]["shipped"].startswith(shipped)
+    assert summary["stages"]["seed_0/pilot"]["config"]["planner"].startswith(shipped)
     (method,) = summary["methods"].values()
     assert method["guidance"] == {
-        "horizon": 3,
+        "horizon": 1,
         "switch_distance": None,
         "switch_rule": "the real goal once it is closer than the landmark",
     }

@@ -321,7 +321,7 @@ class Shipped:
         return self.path
 
     def config(self, ctx: StageContext, stage_dir: Path) -> dict[str, Any]:
-        return {"shipped": self.path.name, "sha256": hashlib.sha256(self.path.read_bytes()).hexdigest()}
+        return {"shipped": str(self.path), "sha256": hashlib.sha256(self.path.read_bytes()).hexdigest()}
 
     def describe(self, ctx: StageContext, stage_dir: Path) -> str:
         return f"shipped {self.path}"
@@ -442,13 +442,16 @@ def config_hash(config: dict[str, Any], needs_hashes: list[str]) -> str:
 
 #: Stands for the challenge's output folder in stored configurations, so that a moved or copied folder still resumes.
 RUN_DIR = "<run>"
+#: The repository's folder (its shipped files, :class:`Shipped`), and what stands for it in stored configurations.
+REPO_DIR, REPO = Path(__file__).resolve().parents[3], "<repo>"
 
 
 def portable(config: dict[str, Any], run_dir: Path) -> dict[str, Any]:
     """
-    A stage configuration with the challenge's folder written :data:`RUN_DIR`: what is hashed and stored.
+    A stage configuration with the challenge's folder written :data:`RUN_DIR` and then the repository's (shipped
+    files) :data:`REPO`: what is hashed and stored.
 
     :param config: the configuration (JSON-serialisable but for paths)
     :param run_dir: ``<root>/<challenge>``
     """
-    return json.loads(json.dumps(config, default=str).replace(str(run_dir), RUN_DIR))
+    return json.loads(json.dumps(config, default=str).replace(str(run_dir), RUN_DIR).replace(str(REPO_DIR), REPO))
