@@ -5,11 +5,10 @@ A challenge is a list of stages run once per seed: :class:`ZooTrain` (a ``python
 :class:`Distill` (:func:`~sb3_pilot.distill_goal_planner` on a trained UDPO) and :class:`Guidance` (a pre-trained
 controller guided by a goal planner, :class:`~sb3_pilot.LandmarkGuidance`, with no training); :class:`Shipped`
 stands for a file that comes with the repository (a trained controller or planner) in place of a training stage.
-Each stage writes
-into its own folder ``<root>/<challenge>/models/seed_<k>/<stage>/`` (``models/`` is gitignored) and, when it has
-finished, a marker ``stage.json`` holding the hash of its configuration (its settings, its budget and the hashes
-of the stages it reads from). A stage whose marker matches is skipped on the next run; one without (interrupted)
-or with another hash is removed and run again. Each stage runs in a process of its own whose output goes to
+Each stage writes into its own folder ``<root>/<challenge>/models/seed_<k>/<stage>/`` (``models/`` is gitignored)
+and, when it has finished, a marker ``stage.json`` holding the hash of its configuration (its settings, its budget
+and the hashes of the stages it reads from). A stage whose marker matches is skipped on the next run; one without
+(interrupted) or with another hash is removed and run again. Each stage runs in a process of its own whose output goes to
 ``stage.log`` in its folder (:mod:`sb3_pilot.experiments.challenges.backends`).
 """
 
