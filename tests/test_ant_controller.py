@@ -101,11 +101,32 @@ def test_flip_terminates_only_when_asked():
         assert reward < 1.0  # no upright reward
 
 
+def test_flip_up_z_counts_a_tilt_as_flipped():
+    """Tilted 70 degrees (up-axis z about 0.34): flipped under flip_up_z=0.5, not under the default 0."""
+    tilt, rewards = np.deg2rad(70.0), []
+    for flip_up_z, flipped in ((0.5, True), (0.0, False)):
+        env = gym.make("Pilot/AntLocomotion-v0", **{**OPTIONS, "flip_up_z": flip_up_z})
+        env.reset(seed=0)
+        ant = env.unwrapped
+        qpos, qvel = ant.data.qpos.copy(), np.zeros_like(ant.data.qvel)
+        qpos[3:7] = [np.cos(tilt / 2), np.sin(tilt / 2), 0.0, 0.0]  # turned by 70 degrees about x
+        qpos[2] = 2.0  # in the air, at rest: the tilt stays for the step
+        ant.set_state(qpos, qvel)
+        assert ant_up_z(ant.data.qpos) == pytest.approx(np.cos(tilt)) and ant.flipped == flipped
+        _, reward, terminated, _, info = env.step(np.zeros(8, dtype=np.float32))
+        assert 0.0 < ant_up_z(ant.data.qpos) < 0.5
+        assert info["flipped"] == terminated == flipped
+        rewards.append(reward)
+    assert rewards[1] - rewards[0] == pytest.approx(OPTIONS.get("upright_reward", 1.0))  # upright only if not flipped
+
+
 def test_option_errors():
     with pytest.raises(ValueError, match="goal_range"):
         gym.make("Pilot/AntLocomotion-v0", goal_range=(2.0, 1.0))
     with pytest.raises(ValueError, match="reward_type"):
         gym.make("Pilot/AntLocomotion-v0", reward_type="shaped")
+    with pytest.raises(ValueError, match="flip_up_z"):
+        gym.make("Pilot/AntLocomotion-v0", flip_up_z=1.0)
 
 
 def _features(extractor: GoalRelativeExtractor, obs: dict[str, np.ndarray]) -> th.Tensor:
@@ -172,14 +193,16 @@ def test_yaw_helpers():
     th.testing.assert_close(remove_yaw(quaternion, yaw), th.tensor([[1.0, 0, 0, 0], [1.0, 0, 0, 0]]), atol=1e-6, rtol=0)
 
 
-def test_recipe_builds_the_model():
+@pytest.mark.parametrize(("conf_file", "flip_up_z"), [("ant_controller.yml", 0.0), ("ant_controller_upright.yml", 0.5)])
+def test_recipe_builds_the_model(conf_file: str, flip_up_z: float):
     """The YAML's env_kwargs make the env and its policy_kwargs string (evaluated as the zoo does) the policy."""
     from stable_baselines3 import SAC
 
-    recipe = yaml.safe_load((Path(__file__).parent.parent / "hyperparams" / "cpu" / "ant_controller.yml").read_text())
+    recipe = yaml.safe_load((Path(__file__).parent.parent / "hyperparams" / "cpu" / conf_file).read_text())
     entry = recipe["Pilot/AntLocomotion-v0"]
     env = gym.make("Pilot/AntLocomotion-v0", **entry["env_kwargs"])
     assert env.spec.max_episode_steps == 500 and env.unwrapped.reward_type == "dense"
+    assert env.unwrapped.flip_up_z == flip_up_z
     policy_kwargs = eval(entry["policy_kwargs"])
     assert policy_kwargs["features_extractor_class"] is GoalRelativeExtractor
     model = SAC("MultiInputPolicy", env, policy_kwargs=policy_kwargs, buffer_size=10, device="cpu")
@@ -200,25 +223,3 @@ def test_wall_margin_wrapper_rewards_are_relabelable():
     achieved = np.array([[-4.0, 4.0], [-4.0, 2.5], [-4.0, 2.5]], dtype=np.float32)
     desired = np.array([[4.0, 4.0], [4.0, 4.0], [-4.0, 2.0]], dtype=np.float32)
     np.testing.assert_array_equal(env.compute_reward(achieved, desired, None), [-1, -2, 0])  # the goal is never penalised
-
-
-SHIPPED = Path(__file__).resolve().parents[1] / "zoo_runs" / "zero-shot-ant-maze" / "controller"
-
-
-@pytest.mark.parametrize("planner_file", ["maze2d_planner_margin1.pt", "maze2d_planner.pt"])
-def test_shipped_controller_and_planners_load_and_guide(planner_file: str) -> None:
-    """The committed controller and Maze2D planners load on a fresh clone and run a guided Ant-Maze episode."""
-    from sb3_pilot import GoalPlanner, LandmarkGuidance
-    from sb3_pilot.experiments.ant_controller import load_controller
-
-    controller = load_controller(str(SHIPPED / "ant_controller_sac_200k.zip"))
-    planner = GoalPlanner.load(SHIPPED / planner_file)
-    assert planner.source_task == "Pilot/Maze2D-v0" and planner.goal_dim == 2
-    env = LandmarkGuidance(gym.make("Pilot/AntMaze-v0", max_episode_steps=20), planner, horizon=3)
-    observation, _ = env.reset(seed=0)
-    for _ in range(20):
-        action, _ = controller.predict(observation, deterministic=True)
-        observation, _, terminated, truncated, info = env.step(action)
-    assert truncated and not terminated and env.action_space.contains(action.astype(np.float32))
-    assert np.linalg.norm(info["landmark"] - observation["achieved_goal"]) < 4.0  # a landmark near the Ant
-    env.close()

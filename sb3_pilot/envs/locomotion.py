@@ -138,8 +138,10 @@ class AntLocomotionEnv(GoalReachingMixin, AntEnv):
     :param upright_reward: dense reward per step while the Ant is not flipped
     :param goal_reward: dense reward per step while the goal is reached
     :param ctrl_cost_weight: weight of the squared action in the dense reward
-    :param terminate_when_flipped: end the episode (``terminated``) once the torso's up axis points below
-        the horizon (``ant_up_z < 0``)
+    :param terminate_when_flipped: end the episode (``terminated``) once the Ant is flipped
+    :param flip_up_z: the Ant counts as flipped (``info["flipped"]``, no ``upright_reward``, the end of the
+        episode with ``terminate_when_flipped``) once the z component of its torso's up axis is below this
+        (``ant_up_z``; 0: on its side or back; 0.5: tilted more than 60 degrees)
     :param reset_noise_scale: noise on the initial joint state (AntMaze's Ant: 0)
     """
 
@@ -156,6 +158,7 @@ class AntLocomotionEnv(GoalReachingMixin, AntEnv):
         goal_reward: float = 1.0,
         ctrl_cost_weight: float = 0.5,
         terminate_when_flipped: bool = False,
+        flip_up_z: float = 0.0,
         reset_noise_scale: float = 0.0,
     ):
         check_render_mode(render_mode, _RENDER_MODES)
@@ -169,6 +172,8 @@ class AntLocomotionEnv(GoalReachingMixin, AntEnv):
             raise ValueError(f"distance_threshold must be positive, got {distance_threshold!r}")
         if reward_type not in REWARD_TYPES:
             raise ValueError(f"reward_type must be one of {REWARD_TYPES}, got {reward_type!r}")
+        if not -1.0 <= flip_up_z < 1.0:
+            raise ValueError(f"flip_up_z must lie in [-1, 1), got {flip_up_z!r}")
         self.goal_range = goal_range
         self.goal_hold_steps = goal_hold_steps
         self.distance_threshold = float(distance_threshold)
@@ -176,6 +181,7 @@ class AntLocomotionEnv(GoalReachingMixin, AntEnv):
         self.upright_reward = upright_reward
         self.goal_reward = goal_reward
         self.terminate_when_flipped = terminate_when_flipped
+        self.flip_up_z = float(flip_up_z)
         self.goal = np.zeros(2)
         self._steps_at_goal = 0
         self.goals_reached = 0
@@ -209,8 +215,8 @@ class AntLocomotionEnv(GoalReachingMixin, AntEnv):
 
     @property
     def flipped(self) -> bool:
-        """Whether the torso's up axis points below the horizon."""
-        return ant_up_z(self.data.qpos) < 0.0
+        """Whether the z component of the torso's up axis is below ``flip_up_z``."""
+        return ant_up_z(self.data.qpos) < self.flip_up_z
 
     @property
     def _options_set(self) -> bool:

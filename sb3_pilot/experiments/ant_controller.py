@@ -11,7 +11,8 @@ planner, and evaluate the controller guided by the planner's landmarks on ``Pilo
         --horizons 1 2 3 4 --switch none 1.0 --seeds 0 1 2 --episodes 10
 
 ``train`` and ``planner`` run the RL Zoo (``python -m sb3_pilot.experiments.zoo train ...``, printed before it runs): the
-controller's recipe is ``hyperparams/cpu/ant_controller.yml``. ``check`` and ``guided`` print tables (Markdown)
+controller's recipe is ``hyperparams/cpu/ant_controller.yml`` (``--conf-file`` for another, e.g.
+``cpu/ant_controller_upright.yml``). ``check`` and ``guided`` print tables (Markdown)
 and can write them as JSON (``--json``).
 """
 
@@ -45,6 +46,7 @@ CHECK_ENV_KWARGS: dict[str, Any] = {
     "reward_type": "dense",
     "terminate_when_flipped": False,
 }
+DEFAULT_RECIPE = "cpu/ant_controller.yml"  # the controller's recipe, in sb3_pilot's hyperparams/ folder
 CHECK_GOAL_TIMEOUT = 100  # steps a goal is given before it counts as missed and is replaced
 MAP_EXTENT = 6.0
 WALL_MARGIN_WRAPPER = "sb3_pilot.experiments.ant_controller.WallMarginWrapper"  # AntMaze's x, y lie in [-6, 6]
@@ -137,7 +139,7 @@ def train(args: argparse.Namespace) -> None:
         "--env",
         CONTROLLER_ENV,
         "--conf-file",
-        "cpu/ant_controller.yml",
+        args.conf_file,
         "--seed",
         str(args.seed),
         "--num-threads",
@@ -154,13 +156,16 @@ def train(args: argparse.Namespace) -> None:
     _run(command)
 
 
-def recipe() -> dict[str, Any]:
-    """The ``Pilot/AntLocomotion-v0`` entry of ``hyperparams/cpu/ant_controller.yml``."""
+def recipe(conf_file: str = DEFAULT_RECIPE) -> dict[str, Any]:
+    """
+    :param conf_file: a controller recipe, relative to ``sb3_pilot``'s ``hyperparams/`` folder
+    :return: its ``Pilot/AntLocomotion-v0`` entry
+    """
     import yaml
 
     from sb3_pilot.experiments.zoo import hyperparams_dir
 
-    return yaml.safe_load((hyperparams_dir() / "cpu" / "ant_controller.yml").read_text())[CONTROLLER_ENV]
+    return yaml.safe_load((hyperparams_dir() / conf_file).read_text())[CONTROLLER_ENV]
 
 
 def continue_training(args: argparse.Namespace) -> None:
@@ -174,7 +179,7 @@ def continue_training(args: argparse.Namespace) -> None:
     from stable_baselines3.common.env_util import make_vec_env
 
     th.set_num_threads(1)
-    entry = recipe()
+    entry = recipe(args.conf_file)
     output = Path(args.output)
     output.parent.mkdir(parents=True, exist_ok=True)
     env = make_vec_env(
@@ -422,6 +427,7 @@ def main(argv: list[str] | None = None) -> None:
     p_train = commands.add_parser("train", help="train the controller with the zoo (hyperparams/cpu/ant_controller.yml)")
     p_train.add_argument("--seed", type=int, default=0)
     p_train.add_argument("--steps", type=int, default=None, help="override n_timesteps")
+    p_train.add_argument("--conf-file", default=DEFAULT_RECIPE, help="the recipe, in sb3_pilot's hyperparams/ folder")
     p_train.add_argument("-f", "--log-folder", default="runs/ctrl")
     p_train.add_argument("--continue-from", default=None, help="a saved controller to train further (not with the zoo)")
     p_train.add_argument("--warmup", type=int, default=20_000, help="steps refilling the buffer before updates")

@@ -192,11 +192,13 @@ def plot_landmarks(summary: dict[str, Any], run_dir: Path, path: Path) -> bool:
     :return: whether the challenge has a Maze2D planner (no PNG otherwise)
     """
     seed_dir = run_dir / "models" / f"seed_{summary['seeds'][0]}"
-    planners = [GoalPlanner.load(file) for file in sorted(seed_dir.glob("*/planner.pt"))]
-    planners = [planner for planner in planners if planner.source_task == MAZE_SOURCE]
+    results = [json.loads(file.read_text()) for file in sorted(seed_dir.glob("*/guidance.json"))]
+    # the planners the challenge distilled, else the one its guidance read (``--reuse-shipped``: the shipped one)
+    files = sorted(seed_dir.glob("*/planner.pt")) or [Path(result["planner"]) for result in results if "planner" in result]
+    planners = [planner for planner in map(GoalPlanner.load, files) if planner.source_task == MAZE_SOURCE]
     if not planners:
         return False
-    guided = [json.loads(file.read_text())["episodes"][0] for file in sorted(seed_dir.glob("*/guidance.json"))]
+    guided = [result["episodes"][0] for result in results]
     fig, axes = plt.subplots(1, 1 + len(guided), figsize=(5 * (1 + len(guided)), 5), squeeze=False)
     achieved, landmarks, goal = maze2d_rollout(planners[0], seed=summary["seeds"][0])
     imagined = planners[0].plan(achieved[0], goal, horizon=len(landmarks))

@@ -7,17 +7,19 @@ process of its own, up to ``--jobs N`` at once on this machine or as Ray tasks (
 """
 
 from sb3_pilot.experiments.challenges.backends import StageFailed
-from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, Challenge
+from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, REUSE_SHIPPED, Challenge
 from sb3_pilot.experiments.challenges.runner import format_table, run_challenge, stage_graph, steps_to
-from sb3_pilot.experiments.challenges.stages import Budget, Distill, Guidance, ZooTrain
+from sb3_pilot.experiments.challenges.stages import Budget, Distill, Guidance, Shipped, ZooTrain
 
 __all__ = [
     "BUDGETS",
     "CHALLENGES",
+    "REUSE_SHIPPED",
     "Budget",
     "Challenge",
     "Distill",
     "Guidance",
+    "Shipped",
     "StageFailed",
     "ZooTrain",
     "format_table",

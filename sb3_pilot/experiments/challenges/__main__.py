@@ -1,6 +1,6 @@
 """
 ``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N [--root zoo_runs] [--plot]
-[--jobs N | --backend ray [--ray-address ADDR]] [--threads T]``.
+[--jobs N | --backend ray [--ray-address ADDR]] [--threads T] [--reuse-shipped]``.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import signal
 import sys
 
 from sb3_pilot.experiments.challenges.backends import BACKENDS, StageFailed
-from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES
+from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, REUSE_SHIPPED
 from sb3_pilot.experiments.challenges.runner import run_challenge
 
 
@@ -43,16 +43,25 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--threads", type=int, default=1, help="torch threads per stage process (the CPUs each Ray task declares)"
     )
+    parser.add_argument(
+        "--reuse-shipped",
+        action="store_true",
+        help=f"evaluate the models shipped in the repository instead of training them ({', '.join(REUSE_SHIPPED)}): "
+        "writes ROOT/CHALLENGE-shipped/",
+    )
     args = parser.parse_args(argv)
     if args.backend == "ray" and args.jobs != 1:
         parser.error("--jobs is for the local backend: Ray runs as many stages at once as the cluster has CPUs")
     # SIGTERM ends the run as Ctrl-C does: the running stages are stopped (Ray tasks cancelled), none is left behind
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     names = list(CHALLENGES) if args.challenge == "all" else [args.challenge]
-    for name in names:
+    if args.reuse_shipped and any(name not in REUSE_SHIPPED for name in names):
+        parser.error(f"--reuse-shipped: shipped models exist for {', '.join(REUSE_SHIPPED)} only")
+    challenges = [REUSE_SHIPPED[name] if args.reuse_shipped else CHALLENGES[name] for name in names]
+    for challenge in challenges:
         try:
             run_challenge(
-                name,
+                challenge,
                 args.budget,
                 seeds=range(args.seeds),
                 root=args.root,
@@ -64,11 +73,11 @@ def main(argv: list[str] | None = None) -> None:
                 threads=args.threads,
             )
         except StageFailed as error:
-            sys.exit(f"{name}: {error}")
+            sys.exit(f"{challenge.name}: {error}")
         if args.plot:
             from sb3_pilot.experiments.plots import plot_challenge
 
-            plot_challenge(f"{args.root}/{name}")
+            plot_challenge(f"{args.root}/{challenge.name}")
 
 
 if __name__ == "__main__":

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sb3_pilot.experiments.challenges.stages import Budget, Distill, Guidance, Stage, ZooTrain
+from sb3_pilot.experiments.challenges.stages import REPO_DIR, Budget, Distill, Guidance, Shipped, Stage, ZooTrain
 
 BUDGETS: dict[str, Budget] = {
     "smoke": Budget(
@@ -278,5 +278,34 @@ CHALLENGES: dict[str, Challenge] = {
                 "cpu": {"maze": 20_000, "controller": 200_000, "her": 200_000},
             },
         ),
+    )
+}
+
+#: The controller and planners shipped for Zero-shot Ant-Maze (see the README there for how each was made).
+SHIPPED_DIR = REPO_DIR / "zoo_runs" / "zero-shot-ant-maze" / "controller"
+#: ``--reuse-shipped``: challenges that evaluate the shipped models instead of training them, by challenge name.
+REUSE_SHIPPED: dict[str, Challenge] = {
+    "zero-shot-ant-maze": Challenge(
+        "zero-shot-ant-maze-shipped",
+        "the shipped Maze2D goal planner (UDPO, wall margin 1) guiding the shipped open-ground SAC Ant controller "
+        "(cpu/ant_controller_upright.yml, 350k steps) on Ant-Maze (0 Ant-Maze steps, no training stage)",
+        "Pilot/AntMaze-v0",
+        (
+            Shipped("distill", SHIPPED_DIR / "maze2d_planner_margin1.pt"),
+            Shipped("controller", SHIPPED_DIR / "ant_controller_upright_sac_350k.zip"),
+            # k and the switch rule measured best with these files (the README's table): k = 1 and k = 2 tie on
+            # success (0.70 on seeds 0-2, 0.60 on seeds 3-5); k = 1 flips less and ends nearer the goal
+            Guidance(
+                "pilot",
+                "distill",
+                "controller",
+                "Pilot/AntMaze-v0",
+                "PILoT zero-shot, shipped models (0 Ant-Maze steps)",
+                horizon=1,
+                switch_distance=None,
+                controller_algo="sac",
+            ),
+        ),
+        steps={"smoke": {"pilot": 50}},  # smoke: 50-step episodes
     )
 }

@@ -14,7 +14,14 @@ import torch as th
 
 from sb3_pilot.experiments.challenges.backends import BACKENDS, StageTask, run_local, run_ray
 from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, Challenge
-from sb3_pilot.experiments.challenges.stages import STAGE_MARKER, Budget, StageContext, config_hash, portable
+from sb3_pilot.experiments.challenges.stages import (
+    STAGE_MARKER,
+    Budget,
+    Guidance,
+    StageContext,
+    config_hash,
+    portable,
+)
 
 #: Success rates whose first crossing the summary reports (``steps_to_50``, ``steps_to_90``).
 THRESHOLDS = (0.5, 0.9)
@@ -38,7 +45,7 @@ def summarize(
 ) -> dict[str, Any]:
     """
     The challenge's results: success rate vs env steps on the target task, per compared method and seed, their
-    mean over seeds, and the steps to 50% / 90% success.
+    mean over seeds, and the steps to 50% / 90% success; for a zero-shot method, the guidance horizon and switch rule.
 
     :param challenge: the challenge
     :param budget: the budget it ran at
@@ -66,6 +73,8 @@ def summarize(
             "runs": runs,
             "mean": {"timesteps": timesteps, "success_rate": mean, **steps_to(timesteps, mean)},
         }
+        if isinstance(stage, Guidance):
+            methods[stage.method]["guidance"] = stage.rule
     stages: dict[str, Any] = {}
     for key, marker in markers.items():
         stage_dir = out_dir / "models" / key

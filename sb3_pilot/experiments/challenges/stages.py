@@ -3,11 +3,12 @@ The stages of a transfer challenge, their configuration hash and the marker of a
 
 A challenge is a list of stages run once per seed: :class:`ZooTrain` (a ``python -m sb3_pilot.experiments.zoo train`` run),
 :class:`Distill` (:func:`~sb3_pilot.distill_goal_planner` on a trained UDPO) and :class:`Guidance` (a pre-trained
-controller guided by a goal planner, :class:`~sb3_pilot.LandmarkGuidance`, with no training). Each stage writes
-into its own folder ``<root>/<challenge>/models/seed_<k>/<stage>/`` (``models/`` is gitignored) and, when it has
-finished, a marker ``stage.json`` holding the hash of its configuration (its settings, its budget and the hashes
-of the stages it reads from). A stage whose marker matches is skipped on the next run; one without (interrupted)
-or with another hash is removed and run again. Each stage runs in a process of its own whose output goes to
+controller guided by a goal planner, :class:`~sb3_pilot.LandmarkGuidance`, with no training); :class:`Shipped`
+stands for a file that comes with the repository (a trained controller or planner) in place of a training stage.
+Each stage writes into its own folder ``<root>/<challenge>/models/seed_<k>/<stage>/`` (``models/`` is gitignored)
+and, when it has finished, a marker ``stage.json`` holding the hash of its configuration (its settings, its budget
+and the hashes of the stages it reads from). A stage whose marker matches is skipped on the next run; one without
+(interrupted) or with another hash is removed and run again. Each stage runs in a process of its own whose output goes to
 ``stage.log`` in its folder (:mod:`sb3_pilot.experiments.challenges.backends`).
 """
 
@@ -118,18 +119,21 @@ def zoo_run_dir(stage_dir: Path, algo: str, env_id: str) -> Path:
     return stage_dir / algo / f"{env_id.replace('/', '-')}_1"
 
 
-def load_zoo_model(model_path: Path, env: DummyVecEnv | None = None) -> tuple[BaseAlgorithm, VecNormalize | None]:
+def load_zoo_model(
+    model_path: Path, env: DummyVecEnv | None = None, algo: str | None = None
+) -> tuple[BaseAlgorithm, VecNormalize | None]:
     """
     Load a model the zoo saved, with its ``VecNormalize`` statistics if it has some.
 
-    :param model_path: ``<run folder>/<env name>.zip``
+    :param model_path: ``<run folder>/<env name>.zip``, or any SB3 zip with ``algo`` given
     :param env: the env to attach (needed to load the replay buffer); None loads the policy alone (no buffer)
+    :param algo: the zoo algorithm that saved it (None: the name of the run folder's parent, as the zoo lays it out)
     :return: the model and its (frozen) ``VecNormalize`` or None
     """
     from rl_zoo3 import ALGOS
 
     register()  # ``udpo`` among the zoo's algorithms, in whichever process the stage runs
-    algo = model_path.parent.parent.name
+    algo = algo or model_path.parent.parent.name
     stats = model_path.parent / model_path.stem / "vecnormalize.pkl"
     vec_normalize = None
     if stats.exists():
@@ -297,18 +301,51 @@ class Distill:
 
 
 @dataclass(frozen=True)
+class Shipped:
+    """
+    A file that comes with the repository (a trained controller, a distilled planner) standing in for the stage that
+    would make it: nothing runs, and its hash is the file's content, so a stage reading it runs again when it changes.
+
+    :param name: stage name (key of its output)
+    :param path: the file
+    """
+
+    name: str
+    path: Path
+    method = None
+    needs: tuple[str, ...] = ()
+
+    def output(self, stage_dir: Path) -> Path:
+        """The shipped file."""
+        return self.path
+
+    def config(self, ctx: StageContext, stage_dir: Path) -> dict[str, Any]:
+        return {"shipped": str(self.path), "sha256": hashlib.sha256(self.path.read_bytes()).hexdigest()}
+
+    def describe(self, ctx: StageContext, stage_dir: Path) -> str:
+        return f"shipped {self.path}"
+
+    def run(self, ctx: StageContext, stage_dir: Path) -> None:
+        """Nothing to run: the file is there (its hash was taken when planning)."""
+
+
+@dataclass(frozen=True)
 class Guidance:
     """
     Zero-shot transfer: a controller of an earlier stage, shown the landmarks of a distilled goal planner
-    (:class:`~sb3_pilot.LandmarkGuidance`), evaluated on ``env_id`` with no training there. The success rate
-    and the first episode's path and landmarks go to ``guidance.json``.
+    (:class:`~sb3_pilot.LandmarkGuidance`), evaluated on ``env_id`` with no training there. The planner's path, the
+    success rate, the final distances to the goal and each episode's path and landmarks go to ``guidance.json``. At
+    a budget with steps for this stage (``smoke``), episodes end after that many steps.
 
     :param name: stage name
-    :param planner: the :class:`Distill` stage
-    :param controller: the :class:`ZooTrain` stage of the controller
+    :param planner: the :class:`Distill` (or :class:`Shipped`) stage of the planner
+    :param controller: the :class:`ZooTrain` (or :class:`Shipped`) stage of the controller
     :param env_id: the task it is evaluated on
     :param method: label in the summary
     :param horizon: chained planner steps to the landmark (``LandmarkGuidance``'s ``horizon``)
+    :param switch_distance: distance to the real goal under which it replaces the landmark (``LandmarkGuidance``'s;
+        None: once it is closer than the landmark)
+    :param controller_algo: the zoo algorithm of the controller (None: from its zoo run folder)
     """
 
     name: str
@@ -317,10 +354,22 @@ class Guidance:
     env_id: str
     method: str
     horizon: int = 4
+    switch_distance: float | None = None
+    controller_algo: str | None = None
 
     @property
     def needs(self) -> tuple[str, ...]:
         return (self.planner, self.controller)
+
+    @property
+    def rule(self) -> dict[str, Any]:
+        """The guidance horizon ``k`` and the switch rule, for the summary."""
+        switch = (
+            "the real goal once it is closer than the landmark"
+            if self.switch_distance is None
+            else f"the real goal once it is within {self.switch_distance}"
+        )
+        return {"horizon": self.horizon, "switch_distance": self.switch_distance, "switch_rule": switch}
 
     def output(self, stage_dir: Path) -> Path:
         """The evaluation's result file."""
@@ -332,29 +381,47 @@ class Guidance:
             "controller": str(ctx.outputs[self.controller]),
             "env_id": self.env_id,
             "horizon": self.horizon,
+            "switch_distance": self.switch_distance,
             "episodes": ctx.budget.eval_episodes,
+            "max_episode_steps": ctx.steps.get(self.name),
             "seed": ctx.seed,
         }
 
     def describe(self, ctx: StageContext, stage_dir: Path) -> str:
-        return f"guide {ctx.outputs[self.controller].name} with the landmarks of the planner on {self.env_id}, 0 steps"
+        return (
+            f"guide {ctx.outputs[self.controller].name} with the landmarks of {ctx.outputs[self.planner].name} "
+            f"(k={self.horizon}) on {self.env_id}, 0 steps"
+        )
 
     def run(self, ctx: StageContext, stage_dir: Path) -> None:
         """Run the guided controller for the budget's ``eval_episodes`` (deterministic actions)."""
-        controller, vec_normalize = load_zoo_model(ctx.outputs[self.controller])
-        env = LandmarkGuidance(gym.make(self.env_id), GoalPlanner.load(ctx.outputs[self.planner]), horizon=self.horizon)
-        successes, episodes = [], []
-        for _, info in play_episodes(controller, vec_normalize, env, ctx.budget.eval_episodes, ctx.seed):
+        controller, vec_normalize = load_zoo_model(ctx.outputs[self.controller], algo=self.controller_algo)
+        max_steps = ctx.steps.get(self.name)
+        task = gym.make(self.env_id, **({"max_episode_steps": max_steps} if max_steps else {}))
+        env = LandmarkGuidance(
+            task, GoalPlanner.load(ctx.outputs[self.planner]), horizon=self.horizon, switch_distance=self.switch_distance
+        )
+        successes, final_distances, episodes = [], [], []
+        for observation, info in play_episodes(controller, vec_normalize, env, ctx.budget.eval_episodes, ctx.seed):
             successes.append(float(info["is_success"]))
+            goal = np.asarray(info["real_desired_goal"])
+            final_distances.append(float(np.linalg.norm(observation["achieved_goal"] - goal)))
             episodes.append(
                 {
                     "achieved_goals": env.episode_achieved_goals.tolist(),
                     "landmarks": env.episode_landmarks.tolist(),
-                    "desired_goal": np.asarray(info["real_desired_goal"]).tolist(),
+                    "desired_goal": goal.tolist(),
                 }
             )
         stage_dir.mkdir(parents=True, exist_ok=True)
-        result = {"timesteps": [0], "success_rate": [float(np.mean(successes))], "successes": successes}
+        result = {
+            "planner": str(ctx.outputs[self.planner]),
+            "timesteps": [0],
+            "success_rate": [float(np.mean(successes))],
+            "successes": successes,
+            "final_distances": final_distances,
+            **self.rule,
+        }
         self.output(stage_dir).write_text(json.dumps({**result, "episodes": episodes}))
 
     def curve(self, stage_dir: Path) -> tuple[list[int], list[float]]:
@@ -363,7 +430,7 @@ class Guidance:
         return result["timesteps"], result["success_rate"]
 
 
-Stage = ZooTrain | Distill | Guidance
+Stage = ZooTrain | Distill | Shipped | Guidance
 
 
 def config_hash(config: dict[str, Any], needs_hashes: list[str]) -> str:
@@ -374,13 +441,16 @@ def config_hash(config: dict[str, Any], needs_hashes: list[str]) -> str:
 
 #: Stands for the challenge's output folder in stored configurations, so that a moved or copied folder still resumes.
 RUN_DIR = "<run>"
+#: The repository's folder (its shipped files, :class:`Shipped`), and what stands for it in stored configurations.
+REPO_DIR, REPO = Path(__file__).resolve().parents[3], "<repo>"
 
 
 def portable(config: dict[str, Any], run_dir: Path) -> dict[str, Any]:
     """
-    A stage configuration with the challenge's folder written :data:`RUN_DIR`: what is hashed and stored.
+    A stage configuration with the challenge's folder written :data:`RUN_DIR` and then the repository's (shipped
+    files) :data:`REPO`: what is hashed and stored.
 
     :param config: the configuration (JSON-serialisable but for paths)
     :param run_dir: ``<root>/<challenge>``
     """
-    return json.loads(json.dumps(config, default=str).replace(str(run_dir), RUN_DIR))
+    return json.loads(json.dumps(config, default=str).replace(str(run_dir), RUN_DIR).replace(str(REPO_DIR), REPO))

@@ -1,0 +1,75 @@
+"""The files shipped for Zero-shot Ant-Maze load on a fresh clone and guide the Ant; ``--reuse-shipped`` evaluates them."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from sb3_pilot import GoalPlanner, LandmarkGuidance
+from sb3_pilot.envs import register_envs
+from sb3_pilot.experiments.ant_controller import load_controller
+from sb3_pilot.experiments.challenges import REUSE_SHIPPED, Shipped
+from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
+
+register_envs()
+SHIPPED_DIR = Path(__file__).resolve().parent.parent / "zoo_runs" / "zero-shot-ant-maze" / "controller"
+CONTROLLERS = sorted(SHIPPED_DIR.glob("*.zip"))
+PLANNERS = sorted(SHIPPED_DIR.glob("*.pt"))
+
+
+def test_reuse_shipped_names_shipped_files():
+    assert CONTROLLERS and PLANNERS
+    for challenge in REUSE_SHIPPED.values():
+        shipped = [stage.path for stage in challenge.stages if isinstance(stage, Shipped)]
+        assert shipped and all(path.is_file() and path.parent == SHIPPED_DIR for path in shipped)
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS, ids=lambda path: path.name)
+@pytest.mark.parametrize("planner", PLANNERS, ids=lambda path: path.name)
+def test_shipped_files_guide_the_ant(controller: Path, planner: Path):
+    """Each shipped controller, guided by each shipped Maze2D planner, runs a short guided Ant-Maze episode."""
+    model = load_controller(controller)
+    goal_planner = GoalPlanner.load(planner)
+    assert goal_planner.source_task == "Pilot/Maze2D-v0" and goal_planner.goal_dim == 2
+    env = LandmarkGuidance(gym.make("Pilot/AntMaze-v0", max_episode_steps=20), goal_planner, horizon=3)
+    observation, _ = env.reset(seed=0)
+    for _ in range(20):
+        action, _ = model.predict(observation, deterministic=True)
+        observation, _, terminated, truncated, info = env.step(action)
+    assert truncated and not terminated and env.action_space.contains(action.astype(np.float32))
+    assert np.linalg.norm(info["landmark"] - observation["achieved_goal"]) < 4.0  # a landmark near the Ant
+    env.close()
+
+
+def test_reuse_shipped_smoke(tmp_path: Path):
+    """The zero-shot evaluation of the shipped files: no training stage, k and the switch rule in summary.json."""
+    challenges_main(["zero-shot-ant-maze", "--reuse-shipped", "--budget", "smoke", "--root", str(tmp_path), "--plot"])
+    challenge = REUSE_SHIPPED["zero-shot-ant-maze"]
+    run_dir = tmp_path / challenge.name
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["challenge"] == challenge.name and summary["seeds"] == [0]
+    assert set(summary["stages"]) == {"seed_0/distill", "seed_0/controller", "seed_0/pilot"}
+    shipped = "<repo>/zoo_runs/zero-shot-ant-maze/controller/"  # stored relative to the repository, as run folders are
+    assert summary["stages"]["seed_0/controller"]["config"]["shipped"].startswith(shipped)
+    assert summary["stages"]["seed_0/pilot"]["config"]["planner"].startswith(shipped)
+    (method,) = summary["methods"].values()
+    assert method["guidance"] == {
+        "horizon": 1,
+        "switch_distance": None,
+        "switch_rule": "the real goal once it is closer than the landmark",
+    }
+    assert method["mean"]["timesteps"] == [0] and 0.0 <= method["mean"]["success_rate"][0] <= 1.0
+    guidance = json.loads((run_dir / "models" / "seed_0" / "pilot" / "guidance.json").read_text())
+    assert len(guidance["successes"]) == len(guidance["final_distances"]) == 2  # the smoke budget's episodes
+    assert len(guidance["episodes"][0]["landmarks"]) == 51  # reset + 50 steps
+    assert not list(run_dir.rglob("*.zip"))  # nothing trained, nothing copied
+    assert (run_dir / "landmarks.png").stat().st_size > 10_000  # the shipped planner's landmarks, the guided Ant
+
+
+def test_reuse_shipped_only_where_shipped(tmp_path: Path):
+    with pytest.raises(SystemExit):
+        challenges_main(["high-dim-action", "--reuse-shipped", "--root", str(tmp_path)])
