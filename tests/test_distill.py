@@ -154,11 +154,12 @@ def test_vec_normalize_source_gives_raw_landmarks():
 @pytest.mark.slow
 @pytest.mark.xfail(
     strict=True,
-    reason="the teacher never goes around the wall at this budget, so no labels can: at 6k steps UDPO's deterministic "
-    "policy reaches 0/4 cross-wall goals (1/20 sampled), SAC + HER with the same settings 0/4 (0/20 sampled), UDPO "
-    "at 20k steps 0/3, also with step_size 0.35; distilled from its real steps (the default labels), the landmarks "
-    "follow it into the wall. On Pilot/Maze2D-v0 and the two-room maze (20k steps, teachers that do go around) the "
-    "landmarks go around: zoo_runs/landmarks. Strict, so a teacher that learns the detour is noticed",
+    reason="the teacher never goes around the wall at this budget, so no labels can (tests/wall_maze_teacher.py): "
+    "cross-wall goals reached by UDPO at 6k steps 0/4 deterministic, 0/20 sampled; SAC + HER with the same settings "
+    "0/4, 0/20; UDPO at 20k steps 0/4, and with step_size 0.35 0/4; distilled from its real steps (the default "
+    "labels), the landmarks follow it into the wall. On Pilot/Maze2D-v0 and the two-room maze (20k steps, teachers "
+    "that do go around) the landmarks go around: zoo_runs/landmarks. Strict, so a teacher that learns the detour "
+    "is noticed",
 )
 def test_wall_maze_landmarks_go_around_the_wall():
     model = train_udpo(WallMazeEnv, total_timesteps=6000)

@@ -178,39 +178,41 @@ def rollout_pairs(
     venv = env if isinstance(env, VecEnv) else model._wrap_env(env)
     vec_normalize = unwrap_vec_normalize(venv)
     was_training = vec_normalize is not None and vec_normalize.training
-    if vec_normalize is not None:
-        vec_normalize.training = False
-
-    def raw(observations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        return vec_normalize.unnormalize_obs(observations) if vec_normalize is not None else observations  # type: ignore[return-value]
-
-    venv.seed(seed)
-    obs = venv.reset()
-    assert isinstance(obs, dict)
-    steps: list[dict[str, np.ndarray]] = []
-    next_goals: list[np.ndarray] = []
+    seen: list[dict[str, np.ndarray]] = []  # observations as the policy sees them, and the goals reached
+    reached_goals: list[np.ndarray] = []
     successes: list[float] = []
-    with th.random.fork_rng(devices=[]):
-        th.manual_seed(seed)
-        for _ in range(-(-n_samples // venv.num_envs)):
-            actions, _ = model.predict(obs, deterministic=deterministic)
-            next_obs, _, dones, infos = venv.step(actions)
-            assert isinstance(next_obs, dict)
-            reached = next_obs["achieved_goal"].copy()
-            for index in np.flatnonzero(dones):  # the env reset: the step's real next state is the terminal observation
-                reached[index] = infos[index]["terminal_observation"]["achieved_goal"]
-                successes.append(float(infos[index].get("is_success", np.nan)))
-            steps.append(raw(obs))
-            next_goals.append(raw({**obs, "achieved_goal": reached})["achieved_goal"])
-            obs = next_obs
-    if vec_normalize is not None:
-        vec_normalize.training = was_training
+    try:
+        if vec_normalize is not None:
+            vec_normalize.training = False
+        venv.seed(seed)
+        obs = venv.reset()
+        assert isinstance(obs, dict)
+        with th.random.fork_rng(devices=[]):
+            th.manual_seed(seed)
+            for _ in range(-(-n_samples // venv.num_envs)):
+                actions, _ = model.predict(obs, deterministic=deterministic)
+                next_obs, _, dones, infos = venv.step(actions)
+                assert isinstance(next_obs, dict)
+                reached = next_obs["achieved_goal"].copy()
+                for index in np.flatnonzero(dones):  # the env reset: the real next state is the terminal observation
+                    reached[index] = infos[index]["terminal_observation"]["achieved_goal"]
+                    successes.append(float(infos[index].get("is_success", np.nan)))
+                seen.append(obs)
+                reached_goals.append(reached)
+                obs = next_obs
+    finally:
+        if vec_normalize is not None:
+            vec_normalize.training = was_training
     if venv is model.get_env():  # its episodes were cut: the next learn() starts new ones
         model._last_obs = None  # type: ignore[assignment]
         if isinstance(model.replay_buffer, HerReplayBuffer):
             model.replay_buffer.truncate_last_trajectory()
-    observations = {key: np.concatenate([step[key] for step in steps])[:n_samples] for key in steps[0]}
-    return observations, np.concatenate(next_goals)[:n_samples], float(np.nanmean(successes)) if successes else np.nan
+    observations = {key: np.concatenate([obs[key] for obs in seen])[:n_samples] for key in seen[0]}
+    next_goals = np.concatenate(reached_goals)[:n_samples]
+    if vec_normalize is not None:  # back to raw coordinates, once
+        next_goals = vec_normalize.unnormalize_obs({**observations, "achieved_goal": next_goals})["achieved_goal"]
+        observations = vec_normalize.unnormalize_obs(observations)  # type: ignore[assignment]
+    return observations, next_goals, float(np.nanmean(successes)) if successes else np.nan
 
 
 def distillation_data(
@@ -344,12 +346,12 @@ def distill_goal_planner(
     Data (:func:`distillation_data`), by default (``labels="rollouts"``): the teacher's policy
     ``pi(a | s, g_target) = I(a | s, h(s' | s, g_target))`` runs ``n_samples`` steps in ``env`` towards the env's own
     goals, and each step gives a pair ``(g, g_target)`` labelled with the goal ``phi(s_{t+1})`` that step really
-    reached. The student therefore
-    learns where the teacher's plan *leads* in one step, not the plan itself: **a landmark of the distilled planner is
-    an immediate one, a next goal the source agent reached in one step from ``g`` on its way to ``g_target``**, of a
-    real step's length and never inside a wall, whatever the balance of the teacher's actor loss and likelihood term
-    (UDPO's own plan ``E[h]`` over-reaches with a weak ``planner_coef`` and stalls with a strong one: see
-    ``zoo_runs/landmarks/``). It costs ``n_samples`` env steps and needs no replay buffer. Goals are the env's
+    reached. The student therefore learns where the teacher's plan *leads* in one step, not the plan itself: **a
+    landmark of the distilled planner is an immediate one, the next goal the source agent reached in one step from
+    ``g`` on its way to ``g_target``**, of a real step's length whatever the balance of the teacher's actor loss and
+    likelihood term (UDPO's own plan ``E[h]`` over-reaches with a weak ``planner_coef`` and stalls with a strong one).
+    Every label is a real position; the student's mean may still land slightly on the wrong side of a wall the teacher
+    slides along (``zoo_runs/landmarks/``). It costs ``n_samples`` env steps and needs no replay buffer. Goals are the env's
     desired goals rather than the paper's ``g_target ~ p_g`` drawn independently of ``s``: the teacher's episodes are
     the only ones whose next goals are real.
 
@@ -403,8 +405,6 @@ def distill_goal_planner(
             f"n_samples={n_samples} leaves {n_holdout} held-out and {n_samples - n_holdout} training samples: "
             f"need >= 1 and >= batch_size={batch_size}."
         )
-    if labels not in LABELS:
-        raise ValueError(f"labels must be one of {LABELS}, got {labels!r}.")
     if source_task is None:
         source_env = env if env is not None else model.get_env()
         if source_env is None:

@@ -24,6 +24,12 @@ line crosses the wall). UDPO uses the ``cpu`` preset's Maze2D settings (hyperpar
 ``--udpo-kwargs`` overriding them. Usage::
 
     OMP_NUM_THREADS=1 python -m sb3_pilot.experiments.benchmarks.landmarks --task maze2d --seeds 0 1 2 --steps 20000
+    # distillation variants, e.g. deterministic rollouts; or only the landmarks of saved planners
+    ... --distill-kwargs "{'deterministic': True}"
+    ... --task maze2d --planners planner_a.pt planner_b.pt
+
+The JSON lines also hold the greedy follower's end positions (``follow_end``) and the teacher's own path from the
+far start (``teacher_far_path``).
 """
 
 from __future__ import annotations
@@ -227,8 +233,11 @@ def imagined_path(planner: GoalPlanner, task: str) -> dict[str, Any]:
     }
 
 
-def follow(planner: GoalPlanner, task: str, k: int) -> bool:
-    """A point that steps greedily towards the k-th chained landmark reaches the far goal within FOLLOW_STEPS."""
+def follow(planner: GoalPlanner, task: str, k: int) -> tuple[bool, list[float]]:
+    """
+    A point that steps greedily towards the k-th chained landmark: whether it reaches the far goal within
+    FOLLOW_STEPS, and where it ends.
+    """
     env = make_env(task, far=True)
     env.reset(seed=0)
     goal = TASKS[task]["goal"]
@@ -238,11 +247,37 @@ def follow(planner: GoalPlanner, task: str, k: int) -> bool:
         landmark = planner.plan(position, goal.astype(np.float32), horizon=k)[-1]
         obs, *_ = env.step(np.clip((landmark - position) / 0.5, -1.0, 1.0))
         if np.linalg.norm(obs["achieved_goal"] - goal) <= SUCCESS_DISTANCE:
-            return True
-    return False
+            return True, obs["achieved_goal"].round(2).tolist()
+    return False, obs["achieved_goal"].round(2).tolist()
 
 
-def run(task: str, seed: int, steps: int, checkpoints: int, udpo_kwargs: dict[str, Any]) -> dict[str, Any]:
+def teacher_far_path(model: UDPO, task: str) -> list[list[float]]:
+    """The teacher's own deterministic path from the far start (no noise) until it reaches the far goal."""
+    env = make_env(task, far=True)
+    env.reset(seed=0)
+    obs = place(env, TASKS[task]["start"], TASKS[task]["goal"])
+    path = [obs["achieved_goal"]]
+    for _ in range(FOLLOW_STEPS):
+        obs, _, _, _, info = env.step(model.predict(obs, deterministic=True)[0])
+        path.append(obs["achieved_goal"])
+        if info["is_success"]:
+            break
+    return np.array(path).round(2).tolist()
+
+
+def landmark_report(planner: GoalPlanner, task: str) -> dict[str, Any]:
+    """The imagined path's numbers and the greedy follower's outcome (``follow``) and end (``follow_end``), k = 1..5."""
+    outcomes = [follow(planner, task, k) for k in range(1, 6)]
+    return {
+        **imagined_path(planner, task),
+        "follow": [int(reached) for reached, _ in outcomes],
+        "follow_end": [end for _, end in outcomes],
+    }
+
+
+def run(
+    task: str, seed: int, steps: int, checkpoints: int, udpo_kwargs: dict[str, Any], distill_kwargs: dict[str, Any]
+) -> dict[str, Any]:
     start_time = time.perf_counter()
     model = UDPO("MultiInputPolicy", Monitor(make_env(task)), seed=seed, **{**CPU_PRESET, **udpo_kwargs})
     result: dict[str, Any] = {"task": task, "seed": seed, "udpo_kwargs": {k: str(v) for k, v in udpo_kwargs.items()}}
@@ -254,16 +289,14 @@ def run(task: str, seed: int, steps: int, checkpoints: int, udpo_kwargs: dict[st
         final = evaluate(model, task, 20, 10_000)
         successes.append(final["success"])
     far = evaluate(model, task, 20, 20_000, far=True)
-    planner = distill_goal_planner(model, seed=seed, env=Monitor(make_env(task)))
-    path = imagined_path(planner, task)
+    planner = distill_goal_planner(model, env=Monitor(make_env(task)), **{"seed": seed, **distill_kwargs})
+    path = landmark_report(planner, task)
+    result["distill_kwargs"] = {k: str(v) for k, v in distill_kwargs.items()}
     result["labels"] = planner.metadata["labels"]
     result["rollout_success"] = planner.metadata.get("rollout_success")
+    result["teacher_far_path"] = teacher_far_path(model, task)
     if planner.metadata["labels"] != "planned":  # also the distillation of the plans themselves, for comparison
-        planned = distill_goal_planner(model, seed=seed, labels="planned")
-        result["from_plans"] = {
-            **imagined_path(planned, task),
-            "follow": [int(follow(planned, task, k)) for k in range(1, 6)],
-        }
+        result["from_plans"] = landmark_report(distill_goal_planner(model, seed=seed, labels="planned"), task)
     result.update(
         success=successes,
         far_success=far["success"],
@@ -272,7 +305,6 @@ def run(task: str, seed: int, steps: int, checkpoints: int, udpo_kwargs: dict[st
         teacher_error=final["teacher_error"],
         **path,
         ratio=path["planned_step"] / final["real_step"],
-        follow=[int(follow(planner, task, k)) for k in range(1, 6)],
         train_steps_per_s=model.num_timesteps / train_seconds,
         seconds=time.perf_counter() - start_time,
     )
@@ -286,19 +318,30 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=20_000)
     parser.add_argument("--checkpoints", type=int, default=4, help="evaluations of UDPO during training")
     parser.add_argument("--udpo-kwargs", default="{}", help="UDPO arguments over the cpu preset, a Python dict literal")
+    parser.add_argument("--distill-kwargs", default="{}", help="distill_goal_planner arguments, a Python dict literal")
+    parser.add_argument("--planners", nargs="+", default=None, help="only measure these saved goal planners' landmarks")
     parser.add_argument("--threads", type=int, default=1)
     args = parser.parse_args()
     th.set_num_threads(args.threads)
     register_envs()
-    udpo_kwargs = ast.literal_eval(args.udpo_kwargs)
-    print(f"task={args.task} steps={args.steps} udpo_kwargs={udpo_kwargs}", flush=True)
+    if args.planners:
+        for path in args.planners:
+            r = landmark_report(GoalPlanner.load(path), args.task)
+            print(
+                f"{path}: planned step {r['planned_step']:.2f}, in walls {r['in_walls']}/{HORIZON} ({r['wall_depth']:.2f}), "
+                f"follow {' '.join(map(str, r['follow']))}",
+                flush=True,
+            )
+        return
+    udpo_kwargs, distill_kwargs = ast.literal_eval(args.udpo_kwargs), ast.literal_eval(args.distill_kwargs)
+    print(f"task={args.task} steps={args.steps} udpo_kwargs={udpo_kwargs} distill_kwargs={distill_kwargs}", flush=True)
     print(
         "| seed | success @checkpoints (far) | real step | teacher step / error | planned step | ratio | in walls "
         "(depth) | follow k=1..5 |",
         flush=True,
     )
     for seed in args.seeds:
-        r = run(args.task, seed, args.steps, args.checkpoints, udpo_kwargs)
+        r = run(args.task, seed, args.steps, args.checkpoints, udpo_kwargs, distill_kwargs)
         print("JSON " + json.dumps(r), flush=True)
         if "from_plans" in r:
             p = r["from_plans"]
