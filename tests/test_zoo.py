@@ -338,3 +338,28 @@ def test_robotics_task_under_its_own_id(tmp_path: Path, algo: str) -> None:
     # the zoo's evaluation (GoalEvalCallback) also records the final distance to the goal, raw float64 observations
     distances = load_final_distances(run_dir / "evaluations.npz")
     assert distances is not None and len(distances) == 2 and np.all((distances > 0) & (distances < 1.0))
+
+
+def test_eval_env_gets_yaml_env_kwargs(tmp_path: Path) -> None:
+    """
+    A YAML entry's ``env_kwargs`` reach the zoo's evaluation env as they reach the training env (the zoo alone gives
+    it the command line's only); ``--eval-env-kwargs`` still wins. Read back: evaluation episode lengths, and the
+    task options :func:`zoo_env_kwargs` recovers from the run (YAML, then command line).
+    """
+    from sb3_pilot.experiments.challenges.stages import zoo_env_kwargs
+
+    conf = tmp_path / "short.yml"
+    entry = yaml.safe_load((HYPERPARAMS / "cpu" / "sac.yml").read_text())["Pilot/Maze2D-v0"]
+    conf.write_text(yaml.safe_dump({"Pilot/Maze2D-v0": {**entry, "env_kwargs": {"max_episode_steps": 7}}}))
+    common = ("-m", "sb3_pilot.experiments.zoo", "train", "--algo", "sac", "--env", "Pilot/Maze2D-v0", "--conf-file")
+    flags = ("-n", "60", "-f", "logs", "--num-threads", "1", "--eval-freq", "30", "--eval-episodes", "2")
+    flags += ("-params", "learning_starts:1000")  # no update: the test reads the envs only
+    run(*common, str(conf), *flags, cwd=tmp_path)
+    run(*common, str(conf), *flags, "--eval-env-kwargs", "max_episode_steps:5", cwd=tmp_path)
+    run(*common, str(conf), *flags, "--env-kwargs", "goal_distribution:'uniform'", cwd=tmp_path)
+    lengths = [np.load(tmp_path / "logs" / "sac" / f"Pilot-Maze2D-v0_{run_id}" / "evaluations.npz")["ep_lengths"] for run_id in (1, 2)]
+    assert np.all(lengths[0] == 7) and np.all(lengths[1] == 5)
+    model = tmp_path / "logs" / "sac" / "Pilot-Maze2D-v0_{}" / "Pilot-Maze2D-v0.zip"
+    assert zoo_env_kwargs(Path(str(model).format(1))) == {"max_episode_steps": 7}
+    # the command line's env_kwargs replace the YAML's, in the zoo and here alike
+    assert zoo_env_kwargs(Path(str(model).format(3))) == {"goal_distribution": "uniform"}

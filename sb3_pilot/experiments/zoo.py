@@ -3,13 +3,15 @@ RL-Zoo entry point: ``python -m sb3_pilot.experiments.zoo train|enjoy|plot_train
 
 :func:`register` adds UDPO to the zoo as ``udpo`` (``rl_zoo3.ALGOS``, plus a hyperparameter sampler for
 ``--optimize``) and registers the ``Pilot/`` tasks; :func:`main` then runs the zoo's own command, as the RL-Zoo
-docs do for SBX, so every zoo flag works. Three conveniences on top of ``python -m rl_zoo3.cli``:
+docs do for SBX, so every zoo flag works. Four conveniences on top of ``python -m rl_zoo3.cli``:
 
 - ``train`` without ``--conf-file`` reads this package's ``hyperparams/<algo>.yml`` for ``udpo`` and for any task
   that file has an entry for (every ``Pilot/`` task, gymnasium-robotics' ``FetchReach-v4``, ...), where the zoo
   would look inside the ``rl_zoo3`` package;
 - a ``--conf-file`` that is no file from the current folder is looked up in that ``hyperparams/`` folder, so
   ``--conf-file cpu/udpo.yml`` or ``--conf-file sac_pilot.yml`` work from anywhere;
+- the evaluation env gets a YAML entry's ``env_kwargs`` as the training env does (the zoo gives it those of the
+  command line only), unless ``--eval-env-kwargs`` says otherwise;
 - ``plot_train -o FILE`` saves the figure (the zoo only calls ``plt.show()``), and ``-e Pilot/...`` finds the
   zoo's log folders (named ``Pilot-...``).
 """
@@ -17,9 +19,11 @@ docs do for SBX, so every zoo flag works. Three conveniences on top of ``python 
 from __future__ import annotations
 
 import argparse
+import functools
 import site
 import sys
 import sysconfig
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -67,6 +71,25 @@ def sample_udpo_params(trial: optuna.Trial, n_actions: int, n_envs: int, additio
     return hyperparams
 
 
+def _eval_env_like_training(preprocess: Callable[..., Any]) -> Callable[..., Any]:
+    """
+    The zoo's ``ExperimentManager._preprocess_hyperparams``, after which the evaluation env gets the ``env_kwargs`` of
+    the YAML entry, as the training env does. The zoo builds its evaluation env with the ``--env-kwargs`` of the
+    command line only (``eval_env_kwargs`` is set before the YAML is read), so a recipe whose task options are in
+    its YAML (``cpu/ant_controller_upright.yml``: 500-step episodes, moving goals) was evaluated on the default task.
+    ``--eval-env-kwargs`` still wins.
+    """
+
+    @functools.wraps(preprocess)
+    def wrapped(self: Any, hyperparams: dict[str, Any]) -> Any:
+        result = preprocess(self, hyperparams)
+        if self._eval_env_kwargs_args is None:
+            self.eval_env_kwargs = self.env_kwargs
+        return result
+
+    return wrapped
+
+
 def register() -> None:
     """
     Register the ``Pilot/`` tasks and gymnasium-robotics' tasks (whose own IDs ``hyperparams/`` also covers), UDPO
@@ -80,6 +103,10 @@ def register() -> None:
     register_envs()
     gym.register_envs(gymnasium_robotics)
     exp_manager.EvalCallback = GoalEvalCallback  # the zoo's evaluations also record the final distance to the goal
+    if not hasattr(exp_manager.ExperimentManager._preprocess_hyperparams, "__wrapped__"):
+        exp_manager.ExperimentManager._preprocess_hyperparams = _eval_env_like_training(
+            exp_manager.ExperimentManager._preprocess_hyperparams
+        )
     ALGOS["udpo"] = UDPO
     HYPERPARAMS_SAMPLER["udpo"] = sample_udpo_params
     HYPERPARAMS_CONVERTER["udpo"] = convert_offpolicy_params

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from sb3_pilot.experiments.ant_controller import WALL_MARGIN_WRAPPER
 from sb3_pilot.experiments.challenges.stages import REPO_DIR, Budget, Distill, Guidance, Shipped, Stage, ZooTrain
 
 BUDGETS: dict[str, Budget] = {
@@ -137,6 +138,11 @@ def _state_planner_transfer(outputs: dict[str, Path]) -> dict[str, Any]:
         "callback": [{"sb3_pilot.transfer.StatePlannerTransferCallback": {"source": str(outputs["source"])}}],
         "policy_kwargs": {"freeze_state_planner": True},
     }
+
+
+def _wall_margin(outputs: dict[str, Path]) -> dict[str, Any]:
+    """``-params`` of the Maze2D source of Zero-shot Ant-Maze: a step within 1 of a wall costs 2, not 1."""
+    return {"env_wrapper": [{WALL_MARGIN_WRAPPER: {"margin": 1.0}}]}
 
 
 HER, PLANNER_TRANSFER = "SAC+HER (scratch)", "UDPO+PILoT (planner transfer)"
@@ -253,29 +259,44 @@ CHALLENGES: dict[str, Challenge] = {
         ),
         Challenge(
             "zero-shot-ant-maze",
-            "UDPO on 2D-Maze -> distilled goal planner guiding a SAC+HER Ant-Locomotion controller on Ant-Maze "
-            "(0 Ant-Maze steps), vs SAC+HER trained on Ant-Maze",
+            "UDPO on 2D-Maze (wall margin 1) -> distilled goal planner guiding an open-ground SAC Ant controller "
+            "(cpu/ant_controller_upright.yml) on Ant-Maze (0 Ant-Maze steps), vs SAC+HER trained on Ant-Maze for "
+            "as many steps",
             "Pilot/AntMaze-v0",
             (
                 # starts and goals uniform over the maze, so the planner knows its geometry everywhere (the paper
                 # queries it from arbitrary start goals); trained on the far goal alone, UDPO saw no success in
-                # 12k of its 20k cpu steps and gives a planner with nothing to distil
+                # 12k of its 20k cpu steps and gives a planner with nothing to distil. Steps near a wall cost more
+                # (WallMarginWrapper): the point slides along walls for free, the Ant's legs do not
                 ZooTrain(
                     "maze",
                     "udpo",
                     "Pilot/Maze2D-v0",
                     "udpo.yml",
+                    params=_wall_margin,
                     save_replay_buffer=True,
                     env_kwargs={"goal_distribution": "uniform"},
                 ),
                 Distill("distill", "maze"),
-                ZooTrain("controller", "sac", "Pilot/AntLocomotion-v0", "sac.yml"),
-                Guidance("pilot", "distill", "controller", "Pilot/AntMaze-v0", "PILoT zero-shot (0 Ant-Maze steps)"),
+                # the shipped controller's recipe: starts and headings anywhere, goals 0.5-3 units away that move
+                # on, 500-step episodes ending on a flip, goal-relative inputs (zoo_runs/zero-shot-ant-maze/controller)
+                ZooTrain("controller", "sac", "Pilot/AntLocomotion-v0", "ant_controller_upright.yml"),
+                # k = 2 with a planner distilled from the teacher's real steps (k = 1's landmarks, one real step
+                # away, lie inside the Ant's stop radius: 0.20 against 0.77, controller/README.md)
+                Guidance(
+                    "pilot",
+                    "distill",
+                    "controller",
+                    "Pilot/AntMaze-v0",
+                    "PILoT zero-shot (0 Ant-Maze steps)",
+                    horizon=2,
+                    switch_distance=None,
+                ),
                 ZooTrain("her", "sac", "Pilot/AntMaze-v0", "sac.yml", method=HER),
             ),
             steps={
                 "smoke": {"maze": 300, "controller": 500, "her": 2100},
-                "cpu": {"maze": 20_000, "controller": 200_000, "her": 200_000},
+                "cpu": {"maze": 20_000, "controller": 350_000, "her": 350_000},
             },
         ),
     )

@@ -174,6 +174,23 @@ def _env_id(model_path: Path) -> str:
     return model_path.stem.replace("-", "/", 1)
 
 
+def zoo_env_kwargs(model_path: Path) -> dict[str, Any]:
+    """
+    The task options a zoo run trained with: its YAML entry's ``env_kwargs`` (``config.yml``), overridden by the
+    command line's ``--env-kwargs`` (``args.yml``), both saved by the zoo beside the model.
+
+    :param model_path: ``<run folder>/<env name>.zip``
+    """
+    saved = model_path.parent / model_path.stem
+    kwargs: dict[str, Any] = {}
+    for name in ("config.yml", "args.yml"):
+        if (saved / name).is_file():
+            # the zoo writes OrderedDicts (python tags), read back as its own enjoy script does
+            entries = dict(yaml.load((saved / name).read_text(), Loader=yaml.UnsafeLoader))
+            kwargs.update(entries.get("env_kwargs") or {})
+    return kwargs
+
+
 @dataclass(frozen=True)
 class ZooTrain:
     """
@@ -224,7 +241,9 @@ class ZooTrain:
         if policy_kwargs:
             hyperparams["policy_kwargs"] = policy_kwargs
         # HER cannot sample before an episode has ended: SB3's default (100) is too early with 4 x 500-step envs
-        first_episodes = entry.get("n_envs", 1) * (gym.spec(self.env_id).max_episode_steps or 1)
+        env_kwargs = {**entry.get("env_kwargs", {}), **self.env_kwargs}
+        episode_steps = env_kwargs.get("max_episode_steps") or gym.spec(self.env_id).max_episode_steps or 1
+        first_episodes = entry.get("n_envs", 1) * episode_steps
         if first_episodes > hyperparams.get("learning_starts", entry.get("learning_starts", 100)):
             hyperparams["learning_starts"] = first_episodes
         callbacks = [{f"{__name__}.CSVLogger": {"folder": str(stage_dir)}}, *hyperparams.pop("callback", [])]
@@ -286,10 +305,10 @@ class Distill:
         return f"distil the goal planner of {ctx.outputs[self.source]}"
 
     def run(self, ctx: StageContext, stage_dir: Path) -> None:
-        """Load the teacher with its replay buffer, distil, save."""
+        """Load the teacher with its replay buffer, distil (its rollouts on the task options it trained with), save."""
         model_path = ctx.outputs[self.source]
-        env_id = _env_id(model_path)
-        teacher, _ = load_zoo_model(model_path, env=DummyVecEnv([lambda: gym.make(env_id)]))
+        env_id, env_kwargs = _env_id(model_path), zoo_env_kwargs(model_path)
+        teacher, _ = load_zoo_model(model_path, env=DummyVecEnv([lambda: gym.make(env_id, **env_kwargs)]))
         assert isinstance(teacher, UDPO)
         teacher.load_replay_buffer(model_path.parent / "replay_buffer.pkl")
         planner = distill_goal_planner(
