@@ -357,9 +357,9 @@ def test_eval_env_gets_yaml_env_kwargs(tmp_path: Path) -> None:
     run(*common, str(conf), *flags, cwd=tmp_path)
     run(*common, str(conf), *flags, "--eval-env-kwargs", "max_episode_steps:5", cwd=tmp_path)
     run(*common, str(conf), *flags, "--env-kwargs", "goal_distribution:'uniform'", cwd=tmp_path)
-    lengths = [np.load(tmp_path / "logs" / "sac" / f"Pilot-Maze2D-v0_{run_id}" / "evaluations.npz")["ep_lengths"] for run_id in (1, 2)]
+    runs = [tmp_path / "logs" / "sac" / f"Pilot-Maze2D-v0_{run_id}" for run_id in (1, 2, 3)]
+    lengths = [np.load(run / "evaluations.npz")["ep_lengths"] for run in runs]
     assert np.all(lengths[0] == 7) and np.all(lengths[1] == 5)
-    model = tmp_path / "logs" / "sac" / "Pilot-Maze2D-v0_{}" / "Pilot-Maze2D-v0.zip"
-    assert zoo_env_kwargs(Path(str(model).format(1))) == {"max_episode_steps": 7}
+    assert zoo_env_kwargs(runs[0] / "Pilot-Maze2D-v0.zip") == {"max_episode_steps": 7}
     # the command line's env_kwargs replace the YAML's, in the zoo and here alike
-    assert zoo_env_kwargs(Path(str(model).format(3))) == {"goal_distribution": "uniform"}
+    assert zoo_env_kwargs(runs[2] / "Pilot-Maze2D-v0.zip") == {"goal_distribution": "uniform"}
