@@ -30,6 +30,9 @@ def check_summary(summary: dict[str, Any], name: str, run_dir: Path) -> None:
             assert len(curve["timesteps"]) == len(curve["success_rate"]) >= 1
             assert all(0.0 <= rate <= 1.0 for rate in curve["success_rate"])
             assert {"steps_to_50", "steps_to_90"} <= set(curve)
+            # every method is also measured by distance: each goal task's evaluations record its final distance
+            assert len(curve["final_distance"]) == len(curve["timesteps"])
+            assert all(0.0 <= distance < 100.0 for distance in curve["final_distance"])
         assert [run["seed"] for run in result["runs"]] == [0]
     assert set(summary["stages"]) == {f"seed_0/{stage.name}" for stage in challenge.stages}
     for stage in summary["stages"].values():

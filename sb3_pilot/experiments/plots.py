@@ -4,7 +4,8 @@ Pictures of a challenge run: ``python -m sb3_pilot.experiments.plots zoo_runs/<c
 Reads ``summary.json`` (written by ``python -m sb3_pilot.experiments.challenges``) and writes, next to it:
 
 - ``success.png``: success rate vs env steps on the target task, mean and min-max spread over seeds, per method
-  (a zero-shot method, evaluated after 0 target steps, is a horizontal line);
+  (a zero-shot method, evaluated after 0 target steps, is a horizontal line), and beside it the final distance to
+  the goal of the same evaluations, where they recorded it;
 - ``plan_error.png``: UDPO's ``rollout/plan_error`` (mean squared error between the planned and the reached next
   state, the paper's "pred-real MSE") over training, from each UDPO stage's ``progress.csv``;
 - ``landmarks.png`` (challenges with a planner distilled on ``Pilot/Maze2D-v0``): the paper's Fig. 1 analogue,
@@ -39,32 +40,42 @@ MAZE_SOURCE = "Pilot/Maze2D-v0"
 
 def plot_success(summary: dict[str, Any], path: Path) -> None:
     """
-    Success rate vs env steps on the target task: per method, the mean over seeds and the min-max band.
+    Success rate vs env steps on the target task: per method, the mean over seeds and the min-max band; beside it,
+    where the evaluations recorded it, the final distance to the goal (mean over the evaluation's episodes) the
+    same way.
 
     :param summary: a challenge's ``summary.json``
     :param path: the PNG to write
     """
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    with_distance = any("final_distance" in result["mean"] for result in summary["methods"].values())
+    fig, axes = plt.subplots(1, 2 if with_distance else 1, figsize=(12 if with_distance else 7, 4.5), squeeze=False)
     last_step = max(max(result["mean"]["timesteps"]) for result in summary["methods"].values())
-    for method, result in summary["methods"].items():
-        n_points = len(result["mean"]["timesteps"])
-        rates = np.array([run["success_rate"][:n_points] for run in result["runs"]])
-        steps = np.array(result["mean"]["timesteps"])
-        if n_points == 1:  # zero-shot: evaluated after 0 target steps
-            steps = np.array([0, last_step])
-            rates = np.repeat(rates, 2, axis=1)
-        (line,) = ax.plot(steps, rates.mean(axis=0), label=method, linestyle="--" if n_points == 1 else "-")
-        ax.fill_between(steps, rates.min(axis=0), rates.max(axis=0), color=line.get_color(), alpha=0.2)
-    ax.set(xlabel=f"env steps on {summary['target_env']}", ylabel="evaluation success rate", ylim=(-0.03, 1.03))
+    for ax, key in zip(axes[0], ("success_rate", "final_distance")[: axes.shape[1]], strict=True):
+        for method, result in summary["methods"].items():
+            if key not in result["mean"]:
+                ax.plot([], [])  # keeps each method's colour the same in both panels
+                continue
+            n_points = len(result["mean"]["timesteps"])
+            values = np.array([run[key][:n_points] for run in result["runs"]])
+            steps = np.array(result["mean"]["timesteps"])
+            if n_points == 1:  # zero-shot: evaluated after 0 target steps
+                steps = np.array([0, last_step])
+                values = np.repeat(values, 2, axis=1)
+            (line,) = ax.plot(steps, values.mean(axis=0), label=method, linestyle="--" if n_points == 1 else "-")
+            ax.fill_between(steps, values.min(axis=0), values.max(axis=0), color=line.get_color(), alpha=0.2)
+        ax.set_xlabel(f"env steps on {summary['target_env']}")
+        ax.grid(alpha=0.3)
+    axes[0, 0].set(ylabel="evaluation success rate", ylim=(-0.03, 1.03))
+    if with_distance:
+        axes[0, 1].set(ylabel="final distance to the goal (mean over episodes)", ylim=(0, None))
     seeds = summary["seeds"]
-    ax.set_title(
+    fig.suptitle(
         "\n".join(
-            textwrap.wrap(f"{summary['challenge']} ({summary['budget']}, {len(seeds)} seeds): {summary['description']}", 80)
+            textwrap.wrap(f"{summary['challenge']} ({summary['budget']}, {len(seeds)} seeds): {summary['description']}", 110)
         ),
         fontsize=9,
     )
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, title="mean, band: min-max over seeds", title_fontsize=7)
+    axes[0, 0].legend(fontsize=8, title="mean, band: min-max over seeds", title_fontsize=7)
     _save(fig, path)
 
 

@@ -60,19 +60,19 @@ def summarize(
             continue
         runs = []
         for seed in seeds:
-            timesteps, success_rate = stage.curve(out_dir / "models" / f"seed_{seed}" / stage.name)
-            runs.append(
-                {"seed": seed, "timesteps": timesteps, "success_rate": success_rate, **steps_to(timesteps, success_rate)}
-            )
+            stage_dir = out_dir / "models" / f"seed_{seed}" / stage.name
+            timesteps, success_rate = stage.curve(stage_dir)
+            run = {"seed": seed, "timesteps": timesteps, "success_rate": success_rate, **steps_to(timesteps, success_rate)}
+            distances = stage.distances(stage_dir)
+            runs.append(run if distances is None else {**run, "final_distance": distances})
         n_points = min(len(run["timesteps"]) for run in runs)
         timesteps = runs[0]["timesteps"][:n_points]
-        mean = np.mean([run["success_rate"][:n_points] for run in runs], axis=0).tolist()
-        methods[stage.method] = {
-            "stage": stage.name,
-            "env_id": stage.env_id,
-            "runs": runs,
-            "mean": {"timesteps": timesteps, "success_rate": mean, **steps_to(timesteps, mean)},
-        }
+        mean: dict[str, Any] = {"timesteps": timesteps}
+        mean["success_rate"] = np.mean([run["success_rate"][:n_points] for run in runs], axis=0).tolist()
+        mean.update(steps_to(timesteps, mean["success_rate"]))
+        if all(len(run.get("final_distance", ())) >= n_points for run in runs):
+            mean["final_distance"] = np.mean([run["final_distance"][:n_points] for run in runs], axis=0).tolist()
+        methods[stage.method] = {"stage": stage.name, "env_id": stage.env_id, "runs": runs, "mean": mean}
         if isinstance(stage, Guidance):
             methods[stage.method]["guidance"] = stage.rule
     stages: dict[str, Any] = {}

@@ -31,6 +31,7 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_pilot.distill import GoalPlanner, distill_goal_planner
+from sb3_pilot.experiments.evaluation import load_final_distances
 from sb3_pilot.experiments.zoo import hyperparams_dir, register
 from sb3_pilot.transfer import LandmarkGuidance
 from sb3_pilot.udpo import UDPO
@@ -275,6 +276,14 @@ class ZooTrain:
         evaluations = np.load(zoo_run_dir(stage_dir, self.algo, self.env_id) / "evaluations.npz")
         return evaluations["timesteps"].tolist(), evaluations["successes"].mean(axis=1).tolist()
 
+    def distances(self, stage_dir: Path) -> list[float] | None:
+        """
+        Mean final distance to the goal of each evaluation (``GoalEvalCallback``'s ``final_distances``), None for a
+        run that has none.
+        """
+        distances = load_final_distances(zoo_run_dir(stage_dir, self.algo, self.env_id) / "evaluations.npz")
+        return None if distances is None else distances.tolist()
+
 
 @dataclass(frozen=True)
 class Distill:
@@ -447,6 +456,10 @@ class Guidance:
         """One point: the success rate after 0 steps on the task."""
         result = json.loads(self.output(stage_dir).read_text())
         return result["timesteps"], result["success_rate"]
+
+    def distances(self, stage_dir: Path) -> list[float]:
+        """One point: the mean final distance to the real goal."""
+        return [float(np.mean(json.loads(self.output(stage_dir).read_text())["final_distances"]))]
 
 
 Stage = ZooTrain | Distill | Shipped | Guidance
