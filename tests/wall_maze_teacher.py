@@ -3,7 +3,7 @@ Does a teacher learn to go around the wall of ``WallMazeEnv`` (the xfail in test
 ``train_udpo`` settings) and SAC + HER with the same settings, then the cross-wall goals each reaches from four
 start/goal pairs below the gap: deterministic actions once, sampled actions 5 times. Usage (repository root)::
 
-    OMP_NUM_THREADS=1 python tests/wall_maze_teacher.py --steps 6000 [--step-size 0.2] [--no-sac]
+    OMP_NUM_THREADS=1 python tests/wall_maze_teacher.py --steps 6000 [--step-size 0.2] [--gap-y 0.0] [--no-sac]
 """
 
 import argparse
@@ -42,10 +42,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--steps", type=int, default=6000)
     parser.add_argument("--step-size", type=float, default=0.2)
+    parser.add_argument("--gap-y", type=float, default=0.0, help="the wall covers y < gap_y")
     parser.add_argument("--no-sac", action="store_true")
     args = parser.parse_args()
     th.set_num_threads(1)
-    env_class = functools.partial(WallMazeEnv, step_size=args.step_size)
+    env_class = functools.partial(WallMazeEnv, step_size=args.step_size, gap_y=args.gap_y)
     models = {"UDPO": train_udpo(env_class, total_timesteps=args.steps)}
     if not args.no_sac:
         models["SAC+HER"] = SAC(
@@ -63,7 +64,7 @@ def main() -> None:
         deterministic = cross_wall_successes(model, env_class(), True, 1)
         sampled = cross_wall_successes(model, env_class(), False, 5)
         print(
-            f"{name}, {args.steps} steps, step_size {args.step_size}: cross-wall goals reached {deterministic}/4 "
+            f"{name}, {args.steps} steps, step_size {args.step_size}, gap_y {args.gap_y}: cross-wall goals reached {deterministic}/4 "
             f"deterministic, {sampled}/20 sampled",
             flush=True,
         )
