@@ -6,7 +6,8 @@ seeds), and a verdict on the paper's claim ("HER+PILoT learns the target faster 
     python -m sb3_pilot.experiments.pairs [ROOT=zoo_runs] [CHALLENGE ...] [--episodes 10]
 
 Final distance: the mean ``||achieved_goal - desired_goal||`` at the end of the last evaluation's episodes, as
-``GoalEvalCallback`` records it in the zoo's ``evaluations.npz``; runs made before that callback existed have their
+``summary.json`` records it (``final_distance``, from ``GoalEvalCallback``'s ``evaluations.npz`` or a guidance
+stage's episodes); for summaries without it, the zoo's ``evaluations.npz``; runs made before that callback existed have their
 final model (``models/``) played again for ``episodes`` deterministic episodes (``play_episodes``). Either goes to
 ``<root>/<challenge>/final_eval.json`` (reused if present, so the table can be rebuilt without the models).
 
@@ -128,7 +129,10 @@ def table(run_dirs: list[Path], episodes: int = 10) -> str:
         for method, result in summary["methods"].items():
             mean = result["mean"]
             finals = [run["success_rate"][-1] for run in result["runs"]]
-            distances = [entry["distance"] for entry in final.get(method, {}).values()]
+            if all("final_distance" in run for run in result["runs"]):  # recorded in the summary: its last evaluation
+                distances = [run["final_distance"][-1] for run in result["runs"]]
+            else:
+                distances = [entry["distance"] for entry in final.get(method, {}).values()]
             judged = verdict(result, her) if her is not None and method != HER else ""
             lines.append(
                 f"| {pair} | {method} | {mean['timesteps'][-1]} | {mean['steps_to_50'] or '-'} | "
