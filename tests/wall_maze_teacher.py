@@ -64,8 +64,8 @@ def main() -> None:
         deterministic = cross_wall_successes(model, env_class(), True, 1)
         sampled = cross_wall_successes(model, env_class(), False, 5)
         print(
-            f"{name}, {args.steps} steps, step_size {args.step_size}, gap_y {args.gap_y}: cross-wall goals reached {deterministic}/4 "
-            f"deterministic, {sampled}/20 sampled",
+            f"{name}, {args.steps} steps, step_size {args.step_size}, gap_y {args.gap_y}: cross-wall goals reached "
+            f"{deterministic}/4 deterministic, {sampled}/20 sampled",
             flush=True,
         )
 
