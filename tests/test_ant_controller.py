@@ -223,3 +223,23 @@ def test_wall_margin_wrapper_rewards_are_relabelable():
     achieved = np.array([[-4.0, 4.0], [-4.0, 2.5], [-4.0, 2.5]], dtype=np.float32)
     desired = np.array([[4.0, 4.0], [4.0, 4.0], [-4.0, 2.0]], dtype=np.float32)
     np.testing.assert_array_equal(env.compute_reward(achieved, desired, None), [-1, -2, 0])  # the goal is never penalised
+
+
+def test_load_controller_of_a_her_model(tmp_path: Path) -> None:
+    """
+    A goal-conditioned controller trained with HER (Complex-Morph's HER+PILoT Ant, a user's own) loads for guidance
+    without its env: the policy alone, the same actions as the trained model.
+    """
+    from stable_baselines3 import SAC, HerReplayBuffer
+
+    from sb3_pilot.experiments.ant_controller import load_controller
+
+    env = gym.make("Pilot/AntLocomotion-v0", max_episode_steps=20)
+    model = SAC("MultiInputPolicy", env, replay_buffer_class=HerReplayBuffer, learning_starts=40, batch_size=16, seed=0)
+    model.learn(60)
+    model.save(tmp_path / "her_controller")
+    loaded = load_controller(tmp_path / "her_controller.zip")
+    observation, _ = env.reset(seed=0)
+    np.testing.assert_allclose(
+        loaded.predict(observation, deterministic=True)[0], model.predict(observation, deterministic=True)[0], atol=1e-6
+    )

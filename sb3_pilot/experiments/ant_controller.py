@@ -122,10 +122,11 @@ def zoo_model_path(log_folder: str | Path, algo: str, env_id: str) -> Path:
 
 
 def load_controller(path: str | Path) -> Any:
-    """The SAC controller alone (no replay buffer), on the CPU."""
+    """The SAC controller alone (no replay buffer, HER's included: it would need the env), on the CPU."""
     from stable_baselines3 import SAC
 
-    return SAC.load(path, device="cpu", custom_objects={"buffer_size": 1})
+    custom = {"buffer_size": 1, "replay_buffer_class": None, "replay_buffer_kwargs": {}}
+    return SAC.load(path, device="cpu", custom_objects=custom)
 
 
 def train(args: argparse.Namespace) -> None:
