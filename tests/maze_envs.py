@@ -98,6 +98,17 @@ class WallMazeEnv(gym.Env):
         return -(distance > self.success_distance).astype(np.float32)
 
 
+#: The off-policy settings that solve the tiny test envs, UDPO's and SAC's alike.
+SMALL_HER_SETTINGS: dict[str, Any] = {
+    "replay_buffer_class": HerReplayBuffer,
+    "learning_starts": 500,
+    "batch_size": 256,
+    "gamma": 0.95,
+    "learning_rate": 1e-3,
+    "policy_kwargs": {"net_arch": [64, 64]},
+}
+
+
 @functools.cache
 def train_udpo(
     env_class: type[gym.Env], total_timesteps: int, seed: int = 0, planner_coef: float = 1e-2, plan_target: str = "buffer"
@@ -106,12 +117,7 @@ def train_udpo(
     model = UDPO(
         "MultiInputPolicy",
         Monitor(env_class()),
-        replay_buffer_class=HerReplayBuffer,
-        learning_starts=500,
-        batch_size=256,
-        gamma=0.95,
-        learning_rate=1e-3,
-        policy_kwargs={"net_arch": [64, 64]},
+        **SMALL_HER_SETTINGS,
         inverse_dynamics_interval=200,
         inverse_dynamics_learning_rate=1e-3,
         inverse_dynamics_gradient_steps=50,

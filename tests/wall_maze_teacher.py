@@ -10,8 +10,8 @@ import argparse
 import functools
 
 import torch as th
-from maze_envs import WallMazeEnv, train_udpo
-from stable_baselines3 import SAC, HerReplayBuffer
+from maze_envs import SMALL_HER_SETTINGS, WallMazeEnv, train_udpo
+from stable_baselines3 import SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.monitor import Monitor
 
@@ -49,17 +49,7 @@ def main() -> None:
     env_class = functools.partial(WallMazeEnv, step_size=args.step_size, gap_y=args.gap_y)
     models = {"UDPO": train_udpo(env_class, total_timesteps=args.steps)}
     if not args.no_sac:
-        models["SAC+HER"] = SAC(
-            "MultiInputPolicy",
-            Monitor(env_class()),
-            replay_buffer_class=HerReplayBuffer,
-            learning_starts=500,
-            batch_size=256,
-            gamma=0.95,
-            learning_rate=1e-3,
-            policy_kwargs={"net_arch": [64, 64]},
-            seed=0,
-        ).learn(args.steps)
+        models["SAC+HER"] = SAC("MultiInputPolicy", Monitor(env_class()), **SMALL_HER_SETTINGS, seed=0).learn(args.steps)
     for name, model in models.items():
         deterministic = cross_wall_successes(model, env_class(), True, 1)
         sampled = cross_wall_successes(model, env_class(), False, 5)

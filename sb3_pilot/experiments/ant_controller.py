@@ -32,6 +32,7 @@ import numpy as np
 
 from sb3_pilot.envs import register_envs
 from sb3_pilot.envs.locomotion import ant_up_z
+from sb3_pilot.envs.maze import WallMarginWrapper, umaze_wall_distance  # noqa: F401 (their former home: old commands)
 
 CONTROLLER_ENV = "Pilot/AntLocomotion-v0"
 MAZE_ENV = "Pilot/AntMaze-v0"
@@ -49,56 +50,7 @@ CHECK_ENV_KWARGS: dict[str, Any] = {
 DEFAULT_RECIPE = "cpu/ant_controller.yml"  # the controller's recipe, in sb3_pilot's hyperparams/ folder
 CHECK_GOAL_TIMEOUT = 100  # steps a goal is given before it counts as missed and is replaced
 MAP_EXTENT = 6.0
-WALL_MARGIN_WRAPPER = "sb3_pilot.experiments.ant_controller.WallMarginWrapper"  # AntMaze's x, y lie in [-6, 6]
-
-
-def umaze_wall_distance(xy: np.ndarray) -> np.ndarray:
-    """
-    :param xy: points of shape (..., 2) in the U-maze's world coordinates
-    :return: distance of each point to the nearest wall block (0 on a wall's face or inside a wall)
-    """
-    from sb3_pilot.envs.maze import UMAZE_MAP, UMAZE_SCALING, umaze_cell_to_xy
-
-    walls = np.array(
-        [
-            umaze_cell_to_xy((row, col))
-            for row in range(len(UMAZE_MAP))
-            for col in range(len(UMAZE_MAP[0]))
-            if UMAZE_MAP[row][col]
-        ]
-    )
-    offset = np.abs(np.asarray(xy, dtype=np.float64)[..., None, :] - walls) - UMAZE_SCALING / 2
-    return np.min(np.linalg.norm(np.maximum(offset, 0.0), axis=-1), axis=-1)
-
-
-class WallMarginWrapper(gym.Wrapper):
-    """
-    Source-task option for ``Pilot/Maze2D-v0`` (zoo: ``env_wrapper``): every step that ends within ``margin`` of a
-    wall without reaching the goal costs ``1 + cost`` instead of 1. The point robot of Maze2D slides along walls
-    at no cost, so its optimal paths (and the landmarks of the planner distilled from it) run diagonally into the
-    inner wall; a robot with a body (the Ant, legs about 1 unit from its centre) cannot follow those. The reward is
-    a function of the achieved goal (the position) and the goal, so HER relabels it consistently, and the task
-    (its ID, goals, observations) stays Maze2D's.
-
-    :param env: ``Pilot/Maze2D-v0``
-    :param margin: distance to the walls under which a step costs more
-    :param cost: extra cost of such a step
-    """
-
-    def __init__(self, env: gym.Env, margin: float = 1.0, cost: float = 1.0):
-        super().__init__(env)
-        self.margin = margin
-        self.cost = cost
-
-    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
-        reward = self.env.get_wrapper_attr("compute_reward")(achieved_goal, desired_goal, info)
-        near_wall = umaze_wall_distance(achieved_goal) < self.margin
-        return (reward - self.cost * (near_wall & (reward < 0))).astype(np.float32)
-
-    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
-        observation, reward, terminated, truncated, info = self.env.step(action)
-        reward = float(self.compute_reward(observation["achieved_goal"], observation["desired_goal"], info))
-        return observation, reward, terminated, truncated, info
+WALL_MARGIN_WRAPPER = "sb3_pilot.envs.maze.WallMarginWrapper"  # the Maze2D source option, as the zoo's env_wrapper
 
 
 def _python() -> list[str]:

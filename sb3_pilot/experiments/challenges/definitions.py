@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sb3_pilot.experiments.ant_controller import WALL_MARGIN_WRAPPER
+from sb3_pilot.envs.maze import WallMarginWrapper
 from sb3_pilot.experiments.challenges.stages import REPO_DIR, Budget, Distill, Guidance, Shipped, Stage, ZooTrain
 
 BUDGETS: dict[str, Budget] = {
@@ -143,7 +143,7 @@ def _state_planner_transfer(outputs: dict[str, Path]) -> dict[str, Any]:
 
 def _wall_margin(outputs: dict[str, Path]) -> dict[str, Any]:
     """``-params`` of the Maze2D source of Zero-shot Ant-Maze: a step within 1 of a wall costs 2, not 1."""
-    return {"env_wrapper": [{WALL_MARGIN_WRAPPER: {"margin": 1.0}}]}
+    return {"env_wrapper": [{f"{WallMarginWrapper.__module__}.{WallMarginWrapper.__qualname__}": {"margin": 1.0}}]}
 
 
 HER, PLANNER_TRANSFER = "SAC+HER (scratch)", "UDPO+PILoT (planner transfer)"

@@ -242,7 +242,7 @@ class ZooTrain:
         if policy_kwargs:
             hyperparams["policy_kwargs"] = policy_kwargs
         # HER cannot sample before an episode has ended: SB3's default (100) is too early with 4 x 500-step envs
-        env_kwargs = {**entry.get("env_kwargs", {}), **self.env_kwargs}
+        env_kwargs = self.env_kwargs or entry.get("env_kwargs", {})  # the zoo's --env-kwargs replace the YAML's
         episode_steps = env_kwargs.get("max_episode_steps") or gym.spec(self.env_id).max_episode_steps or 1
         first_episodes = entry.get("n_envs", 1) * episode_steps
         if first_episodes > hyperparams.get("learning_starts", entry.get("learning_starts", 100)):
