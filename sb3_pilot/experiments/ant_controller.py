@@ -99,7 +99,7 @@ def train(args: argparse.Namespace) -> None:
         "1",
         "--save-freq",
         "50000",
-        "--eval-freq",  # the zoo builds its eval env without the YAML's env_kwargs: `check` evaluates instead
+        "--eval-freq",  # `check` evaluates the checkpoints; the zoo's evaluations would shift the run's random stream
         "-1",
         "-f",
         args.log_folder,
