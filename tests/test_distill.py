@@ -117,6 +117,46 @@ def test_predict_plan_save_load(point_planner, tmp_path):
         point_planner.plan(achieved, desired, horizon=0)
 
 
+def test_snapped_landmarks_are_support_goals(point_teacher, rollout_planner, tmp_path):
+    """The support is real achieved goals; snapped landmarks are the nearest of them; it is saved; older files work."""
+    support = rollout_planner.support.numpy()
+    n_train = DISTILL_KWARGS["n_samples"] - round(0.1 * DISTILL_KWARGS["n_samples"])
+    assert support.shape == (n_train, 2) and rollout_planner.metadata["support_size"] == n_train  # fewer pairs than 20k
+    assert len(np.unique(support, axis=0)) > 0.9 * n_train  # drawn without replacement from many distinct states
+    observations, _, _ = rollout_pairs(point_teacher, Monitor(PointGoalEnv()), DISTILL_KWARGS["n_samples"], seed=0)
+    visited = {tuple(goal) for goal in observations["achieved_goal"].astype(np.float32)}
+    assert all(tuple(goal) in visited for goal in support)  # states the teacher's rollouts really occupied
+
+    achieved, desired = np.array([-0.5, -0.5], dtype=np.float32), np.array([0.5, 0.5], dtype=np.float32)
+    free = rollout_planner.predict(achieved, desired)
+    snapped = rollout_planner.predict(achieved, desired, snap=True)
+    nearest = support[np.linalg.norm(support - free, axis=1).argmin()]
+    np.testing.assert_array_equal(snapped, nearest)
+    path = rollout_planner.plan(achieved, desired, horizon=5, snap=True)
+    assert all((support == landmark).all(axis=1).any() for landmark in path)
+    np.testing.assert_array_equal(path[1], rollout_planner.predict(path[0], desired, snap=True))
+    batch = rollout_planner.plan(np.stack([achieved] * 3), np.stack([desired] * 3), horizon=5, snap=True)
+    np.testing.assert_array_equal(batch[2], path)
+
+    rollout_planner.save(tmp_path / "planner.pt")
+    np.testing.assert_array_equal(GoalPlanner.load(tmp_path / "planner.pt").plan(achieved, desired, 5, snap=True), path)
+    data = th.load(tmp_path / "planner.pt", weights_only=True)
+    del data["state_dict"]["support"]  # as saved before planners kept a support
+    th.save(data, tmp_path / "older.pt")
+    older = GoalPlanner.load(tmp_path / "older.pt")
+    assert not older.has_support
+    np.testing.assert_array_equal(older.predict(achieved, desired), free)
+    with pytest.raises(ValueError, match="support goals"):
+        older.predict(achieved, desired, snap=True)
+    none = distill_goal_planner(point_teacher, **DISTILL_KWARGS, env=Monitor(PointGoalEnv()), support_size=0)
+    assert not none.has_support and none.metadata["support_size"] == 0
+    for name, value in none.state_dict().items():  # the support is drawn after the fit: same weights
+        if name != "support":
+            assert th.equal(value, rollout_planner.state_dict()[name])
+    with pytest.raises(ValueError, match="support_size"):
+        distill_goal_planner(point_teacher, support_size=-1)
+
+
 def test_vec_normalize_source_gives_raw_landmarks():
     """Goals around (5, 5): normalised ones are around 0, so raw and normalised landmarks cannot be confused."""
     offset = 5.0
@@ -148,6 +188,9 @@ def test_vec_normalize_source_gives_raw_landmarks():
     np.testing.assert_array_equal(venv.obs_rms["achieved_goal"].mean, mean)
     assert venv.training == training and model._last_obs is None
     assert np.abs(rollout_planner.predict(observations["achieved_goal"], observations["desired_goal"]) - offset).max() < 2.0
+    support = rollout_planner.support.numpy() - offset  # raw positions, none inside the wall
+    assert np.abs(support).max() <= 1.0 + 1e-5
+    assert not ((np.abs(support[:, 0]) <= WallMazeEnv.wall_half_width) & (support[:, 1] < 0.0)).any()
     model.learn(100, reset_num_timesteps=False)
 
 

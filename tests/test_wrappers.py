@@ -152,7 +152,7 @@ def point_teacher_and_planner():
 
 def test_guidance_feeds_landmarks_and_judges_the_real_goal(point_teacher_and_planner):
     controller, planner = point_teacher_and_planner
-    env = LandmarkGuidance(PointGoalEnv(), planner, horizon=3, switch_distance=0.2)
+    env = LandmarkGuidance(PointGoalEnv(), planner, horizon=3, switch_distance=0.2, snap=True)
     guided_steps, successes = 0, []
     for episode in range(4):
         obs, _ = env.reset(seed=episode)
@@ -161,7 +161,7 @@ def test_guidance_feeds_landmarks_and_judges_the_real_goal(point_teacher_and_pla
         while not done:
             achieved = obs["achieved_goal"]
             far = np.linalg.norm(achieved - real_goal) > 0.2
-            expected = planner.plan(achieved, real_goal, horizon=3)[-1] if far else real_goal
+            expected = planner.plan(achieved, real_goal, horizon=3, snap=True)[-1] if far else real_goal
             np.testing.assert_allclose(obs["desired_goal"], expected, rtol=1e-6)
             guided_steps += int(far)
             action, _ = controller.predict(obs, deterministic=True)
@@ -173,4 +173,15 @@ def test_guidance_feeds_landmarks_and_judges_the_real_goal(point_teacher_and_pla
         successes.append(real_success)
         assert env.episode_landmarks.shape == env.episode_achieved_goals.shape == (26, 2)
     assert guided_steps > 0
+    support = planner.support.numpy()
+    landmarks = env.episode_landmarks[np.linalg.norm(env.episode_landmarks - real_goal, axis=1) > 0]
+    assert all((support == landmark).all(axis=1).any() for landmark in landmarks)
+
+    unsnapped = LandmarkGuidance(PointGoalEnv(), planner, horizon=3, switch_distance=0.0)
+    obs, _ = unsnapped.reset(seed=0)
+    real_goal = unsnapped.unwrapped.goal.astype(np.float32)
+    np.testing.assert_allclose(obs["desired_goal"], planner.plan(obs["achieved_goal"], real_goal, horizon=3)[-1], rtol=1e-6)
+    no_support = GoalPlanner(2, metadata=planner.metadata)
+    with pytest.raises(ValueError, match="support goals"):
+        LandmarkGuidance(PointGoalEnv(), no_support, snap=True)
     print(f"guided success rate {np.mean(successes):.2f}")

@@ -338,6 +338,7 @@ def distill_goal_planner(
     labels: str = "rollouts",
     env: GymEnv | None = None,
     deterministic: bool = False,
+    support_size: int = 20_000,
 ) -> GoalPlanner:
     """
     Distil a trained UDPO's state planner ``h(s' | s, g_target)`` (the teacher) into a goal planner
@@ -351,7 +352,10 @@ def distill_goal_planner(
     ``g`` on its way to ``g_target``**, of a real step's length whatever the balance of the teacher's actor loss and
     likelihood term (UDPO's own plan ``E[h]`` over-reaches with a weak ``planner_coef`` and stalls with a strong one).
     Every label is a real position; the student's mean may still land slightly on the wrong side of a wall the teacher
-    slides along (``zoo_runs/landmarks/``). It costs ``n_samples`` env steps and needs no replay buffer. Goals are the env's
+    slides along (``zoo_runs/landmarks/``): for landmarks that must be real positions (guidance), the planner keeps
+    ``support_size`` of the achieved goals of the pairs' states, positions the source really occupied, and
+    ``plan(..., snap=True)`` replaces each landmark by the nearest of them (:meth:`GoalPlanner.snap`).
+    It costs ``n_samples`` env steps and needs no replay buffer. Goals are the env's
     desired goals rather than the paper's ``g_target ~ p_g`` drawn independently of ``s``: the teacher's episodes are
     the only ones whose next goals are real.
 
@@ -390,6 +394,8 @@ def distill_goal_planner(
     :param deterministic: with ``"rollouts"``, act with the mean plan's action; by default actions are sampled from
         the teacher's policy, so the labels are its next-goal *distribution*, realised (as eq. "distill" matches the
         distribution of ``h``), and the states cover the neighbourhood of its paths that the chained landmarks visit
+    :param support_size: number of the training pairs' achieved goals (drawn at random) kept as the planner's
+        support for ``snap=True`` (0: none)
     :return: the distilled goal planner (on the model's device)
     """
     _check_teacher(model)
@@ -397,6 +403,7 @@ def distill_goal_planner(
     check_number("learning_rate", learning_rate, minimum=0, strict=True)
     for name, value in (("n_samples", n_samples), ("gradient_steps", gradient_steps), ("batch_size", batch_size)):
         check_number(name, value, minimum=1, integer=True)
+    check_number("support_size", support_size, minimum=0, integer=True)
     if holdout_fraction >= 1:
         raise ValueError(f"holdout_fraction must be in (0, 1), got {holdout_fraction}.")
     n_holdout = round(holdout_fraction * n_samples)
@@ -437,6 +444,10 @@ def distill_goal_planner(
     untrained = holdout_report(planner, holdout, holdout_labels)
     fit_goal_planner(planner, train, gradient_steps, batch_size, learning_rate, generator, logger, log_interval, progress_bar)
     trained = holdout_report(planner, holdout, holdout_labels)
+    # drawn after the fit: the same seed gives the same weights with any support_size
+    support = th.randperm(len(train.achieved_goal), generator=generator, device=model.device)[:support_size]
+    planner.set_support(train.achieved_goal[support])
+    planner.metadata["support_size"] = len(support)
 
     report = {
         **{f"{key}_untrained": value for key, value in untrained._asdict().items()},

@@ -57,6 +57,11 @@ class GoalPlanner(nn.Module):
     Internally, inputs are standardised with ``goal_mean``/``goal_std`` and the output is scaled by
     ``delta_scale``; these are buffers set from the distillation data and saved with the weights.
 
+    The planner may also hold a *support*: goals the source agent really occupied (``support``, set by
+    :func:`~sb3_pilot.distill.distill_goal_planner`). With ``snap=True``, :meth:`predict` and :meth:`plan` replace each
+    landmark by the nearest of them, so that every landmark is a state the source reached (never inside a wall it
+    could not enter), as planning over replay-buffer states does (SoRB, Eysenbach et al. 2019).
+
     :param goal_dim: size of the goal vectors
     :param net_arch: hidden layer sizes
     :param activation_fn: activation function (a ``torch.nn`` module class)
@@ -66,6 +71,7 @@ class GoalPlanner(nn.Module):
     goal_mean: th.Tensor
     goal_std: th.Tensor
     delta_scale: th.Tensor
+    support: th.Tensor
 
     def __init__(
         self,
@@ -84,6 +90,7 @@ class GoalPlanner(nn.Module):
         self.register_buffer("goal_mean", th.zeros(goal_dim))
         self.register_buffer("goal_std", th.ones(goal_dim))
         self.register_buffer("delta_scale", th.ones(goal_dim))
+        self.register_buffer("support", th.zeros(0, goal_dim))
 
     @property
     def source_task(self) -> str | None:
@@ -100,6 +107,35 @@ class GoalPlanner(nn.Module):
         self.goal_mean.copy_(goals.mean(dim=0))
         self.goal_std.copy_(goals.std(dim=0).clamp_min(1e-6))
         self.delta_scale.copy_(deltas.abs().mean(dim=0).clamp_min(1e-6))
+
+    def set_support(self, goals: th.Tensor) -> None:
+        """
+        Set the goals that :meth:`predict` and :meth:`plan` snap landmarks to (``snap=True``).
+
+        :param goals: goals the source agent really occupied, shape (m, goal_dim), raw coordinates
+        """
+        if goals.ndim != 2 or goals.shape[1] != self.goal_dim:
+            raise ValueError(f"support goals must have shape (m, {self.goal_dim}), got {tuple(goals.shape)}.")
+        self.support = goals.detach().to(self.goal_mean).clone()
+
+    @property
+    def has_support(self) -> bool:
+        """Whether the planner holds goals to snap its landmarks to."""
+        return len(self.support) > 0
+
+    def snap(self, goals: th.Tensor, chunk: int = 256) -> th.Tensor:
+        """
+        :param goals: goals, shape (n, goal_dim), raw coordinates
+        :param chunk: goals compared with the whole support at once (memory: ``chunk * len(support)`` distances)
+        :return: for each goal, the nearest goal of the support
+        """
+        if not self.has_support:
+            raise ValueError(
+                "This goal planner holds no support goals to snap landmarks to (distilled with support_size=0, or saved "
+                "before planners kept them): distil it again, or plan with snap=False."
+            )
+        nearest = [th.cdist(part, self.support).argmin(dim=1) for part in goals.split(chunk)]
+        return self.support[th.cat(nearest)]
 
     def _outputs(self, achieved_goal: th.Tensor, desired_goal: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
         """Standardise the inputs and run the network: scaled mean and log-std of ``g' - g``."""
@@ -134,13 +170,16 @@ class GoalPlanner(nn.Module):
             raise ValueError(f"{name} must have shape ({self.goal_dim},) or (n, {self.goal_dim}), got {goals.shape}.")
         return th.as_tensor(goals.reshape(-1, self.goal_dim), device=self.goal_mean.device)
 
-    def predict(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, deterministic: bool = True) -> np.ndarray:
+    def predict(
+        self, achieved_goal: np.ndarray, desired_goal: np.ndarray, deterministic: bool = True, snap: bool = False
+    ) -> np.ndarray:
         """
         The immediate landmark ``g' ~ f(. | g, g_target)``.
 
         :param achieved_goal: current goal(s), shape (goal_dim,) or (n, goal_dim), raw coordinates
         :param desired_goal: target goal(s), same shape
         :param deterministic: return the mean instead of a sample
+        :param snap: replace the landmark by the nearest support goal (a state the source reached, see :meth:`snap`)
         :return: next goal(s), same shape as ``achieved_goal``
         """
         achieved = self._to_tensor(achieved_goal, "achieved_goal")
@@ -148,11 +187,17 @@ class GoalPlanner(nn.Module):
         if achieved.shape != desired.shape:
             raise ValueError(f"achieved_goal and desired_goal shapes differ: {achieved.shape} vs {desired.shape}.")
         with th.inference_mode():
-            next_goal = self(achieved, desired, deterministic=deterministic).cpu().numpy()
+            next_goal = self(achieved, desired, deterministic=deterministic)
+            next_goal = (self.snap(next_goal) if snap else next_goal).cpu().numpy()
         return next_goal.reshape(np.shape(achieved_goal))
 
     def plan(
-        self, achieved_goal: np.ndarray, desired_goal: np.ndarray, horizon: int = 1, deterministic: bool = True
+        self,
+        achieved_goal: np.ndarray,
+        desired_goal: np.ndarray,
+        horizon: int = 1,
+        deterministic: bool = True,
+        snap: bool = False,
     ) -> np.ndarray:
         """
         Imagined path: ``horizon`` landmarks chained from ``achieved_goal``, each planned from the previous one.
@@ -161,12 +206,13 @@ class GoalPlanner(nn.Module):
         :param desired_goal: target goal(s), same shape
         :param horizon: number of landmarks ``k``
         :param deterministic: chain the means instead of samples
+        :param snap: snap every landmark to the nearest support goal before planning the next one
         :return: landmarks, shape (horizon, goal_dim) or (n, horizon, goal_dim)
         """
         check_number("horizon", horizon, minimum=1, integer=True)
         landmarks, goal = [], achieved_goal
         for _ in range(horizon):
-            goal = self.predict(goal, desired_goal, deterministic=deterministic)
+            goal = self.predict(goal, desired_goal, deterministic=deterministic, snap=snap)
             landmarks.append(goal)
         return np.stack(landmarks, axis=-2)
 
@@ -210,7 +256,9 @@ class GoalPlanner(nn.Module):
                 f"Goal planner {path} was saved by sb3_pilot {metadata.get('sb3_pilot_version')}, this is {__version__}."
             )
         planner = cls(metadata["goal_dim"], data["net_arch"], getattr(nn, data["activation_fn"]), metadata=metadata)
-        planner.load_state_dict(data["state_dict"])
+        state_dict = {"support": th.zeros(0, metadata["goal_dim"]), **data["state_dict"]}  # none in older files
+        planner.support = th.empty_like(state_dict["support"])
+        planner.load_state_dict(state_dict)
         return planner.to(device)
 
     @classmethod

@@ -282,11 +282,17 @@ def planner(args: argparse.Namespace) -> None:
 
 
 def guided_episodes(
-    model: Any, planner: Any, horizon: int | None, switch_distance: float | None, seed: int, episodes: int
+    model: Any,
+    planner: Any,
+    horizon: int | None,
+    switch_distance: float | None,
+    seed: int,
+    episodes: int,
+    snap: bool = False,
 ) -> dict[str, Any]:
     """
     The controller on ``Pilot/AntMaze-v0`` (far goal), guided by ``LandmarkGuidance(planner, horizon,
-    switch_distance)`` or, with ``horizon=None``, shown the real goal directly. Episode ``i`` is reset with seed
+    switch_distance, snap)`` or, with ``horizon=None``, shown the real goal directly. Episode ``i`` is reset with seed
     ``10_000 * seed + i``, as the challenge's ``Guidance`` stage does.
 
     :return: ``success`` (goal within 1.0 at the last step, the task's success), ``reached`` (at any step),
@@ -296,7 +302,7 @@ def guided_episodes(
 
     env = gym.make(MAZE_ENV)
     if horizon is not None:
-        env = LandmarkGuidance(env, planner, horizon=horizon, switch_distance=switch_distance)
+        env = LandmarkGuidance(env, planner, horizon=horizon, switch_distance=switch_distance, snap=snap)
     maze = env.unwrapped
     success, reached, flipped, final_distance, speed = [], [], [], [], []
     for episode in range(episodes):
@@ -343,7 +349,10 @@ def guided(args: argparse.Namespace) -> None:
     results = []
     for horizon, switch_distance in configs:
         start = time.time()
-        per_seed = [guided_episodes(model, goal_planner, horizon, switch_distance, seed, args.episodes) for seed in args.seeds]
+        per_seed = [
+            guided_episodes(model, goal_planner, horizon, switch_distance, seed, args.episodes, args.snap)
+            for seed in args.seeds
+        ]
         row = {
             "horizon": horizon,
             "switch_distance": switch_distance,
@@ -371,6 +380,7 @@ def guided(args: argparse.Namespace) -> None:
         )
     if args.json:
         meta = {"model": str(args.model), "planner": str(args.planner), "seeds": args.seeds, "episodes": args.episodes}
+        meta["snap"] = args.snap
         Path(args.json).write_text(json.dumps({**meta, "results": results}, indent=2))
 
 
@@ -410,6 +420,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     p_guided.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     p_guided.add_argument("--episodes", type=int, default=10)
+    p_guided.add_argument("--snap", action="store_true", help="snap the landmarks to the planner's support goals")
     p_guided.add_argument("--unguided", action=argparse.BooleanOptionalAction, default=True, help="add the real-goal row")
     p_guided.add_argument("--json", default=None)
     p_guided.set_defaults(func=guided)

@@ -20,6 +20,7 @@ class LandmarkGuidance(gym.Wrapper):
 
     The landmark is ``k = horizon`` chained planner steps ahead of the achieved goal; the real goal is shown instead
     once it is within reach: closer than ``switch_distance``, or (``switch_distance=None``) closer than the landmark.
+    With ``snap``, every chained landmark is a goal the source agent really occupied (:meth:`GoalPlanner.snap`).
     ``info["landmark"]`` and ``info["real_desired_goal"]`` are added at each step, and the episode's landmarks and
     achieved goals are kept in :attr:`episode_landmarks` and :attr:`episode_achieved_goals`, for drawing.
 
@@ -29,6 +30,9 @@ class LandmarkGuidance(gym.Wrapper):
     :param horizon: number ``k`` of chained planner steps to the landmark
     :param switch_distance: distance to the real goal under which it replaces the landmark (None: the landmark's
         distance; 0: never)
+    :param snap: snap the landmarks to the planner's support goals (positions the source really occupied). Off by
+        default: for a point in Maze2D it removes every in-wall landmark, for the open-ground Ant controller in
+        Ant-Maze it did not help (``zoo_runs/landmarks/``)
     """
 
     def __init__(
@@ -37,6 +41,7 @@ class LandmarkGuidance(gym.Wrapper):
         planner: GoalPlanner | str | os.PathLike,
         horizon: int = 1,
         switch_distance: float | None = None,
+        snap: bool = False,
     ):
         check_number("horizon", horizon, minimum=1, integer=True)
         if switch_distance is not None:
@@ -45,6 +50,9 @@ class LandmarkGuidance(gym.Wrapper):
         self.planner = GoalPlanner.for_env(planner, env)
         self.horizon = horizon
         self.switch_distance = switch_distance
+        self.snap = snap
+        if snap and not self.planner.has_support:
+            raise ValueError("snap=True needs a goal planner with support goals: distil it again, or pass snap=False.")
         self.real_desired_goal: np.ndarray | None = None
         self._landmarks: list[np.ndarray] = []
         self._achieved_goals: list[np.ndarray] = []
@@ -61,7 +69,7 @@ class LandmarkGuidance(gym.Wrapper):
 
     def landmark(self, achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
         """The goal to show the controller at ``achieved_goal`` for the real goal ``desired_goal``."""
-        landmark = self.planner.plan(achieved_goal, desired_goal, horizon=self.horizon)[-1]
+        landmark = self.planner.plan(achieved_goal, desired_goal, horizon=self.horizon, snap=self.snap)[-1]
         distance = np.linalg.norm(desired_goal - achieved_goal)
         reach = np.linalg.norm(landmark - achieved_goal) if self.switch_distance is None else self.switch_distance
         return np.array(desired_goal) if distance <= reach else landmark

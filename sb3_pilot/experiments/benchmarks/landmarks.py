@@ -15,7 +15,9 @@ the distilled goal planner from the far start to the far goal, per seed:
   along walls gives labels on the face, and a smooth student lands on either side of it);
 * ``follow k``: a point that starts at the far start and at every step moves with the maze's own dynamics towards
   the k-th landmark chained from where it is (action ``clip((landmark - position) / 0.5, -1, 1)``) reaches the far
-  goal (within 1.0) in at most 100 steps (1 or 0), for k = 1..5.
+  goal (within 1.0) in at most 100 steps (1 or 0), for k = 1..5;
+* ``snapped``: the same imagined path and follower with every landmark snapped to the nearest of the planner's
+  support goals (``plan(..., snap=True)``: positions the source really occupied).
 
 Tasks: ``maze2d`` is ``Pilot/Maze2D-v0`` with uniform goals (U-maze, far start (-4, 4), far goal (-4, -4));
 ``rooms`` is the same kinematic point (0.5 per axis and step, sliding along walls, 50-step episodes) in two 8x12
@@ -217,9 +219,9 @@ def evaluate(model: UDPO, task: str, n_episodes: int, seed: int, far: bool = Fal
     }
 
 
-def imagined_path(planner: GoalPlanner, task: str) -> dict[str, Any]:
+def imagined_path(planner: GoalPlanner, task: str, snap: bool = False) -> dict[str, Any]:
     start, goal = TASKS[task]["start"].astype(np.float32), TASKS[task]["goal"].astype(np.float32)
-    path = np.concatenate([start[None], planner.plan(start, goal, horizon=HORIZON)])
+    path = np.concatenate([start[None], planner.plan(start, goal, horizon=HORIZON, snap=snap)])
     steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
     near = np.flatnonzero(np.linalg.norm(path[1:] - goal, axis=1) <= SUCCESS_DISTANCE)
     n_steps = int(near[0]) + 1 if len(near) else HORIZON
@@ -233,7 +235,7 @@ def imagined_path(planner: GoalPlanner, task: str) -> dict[str, Any]:
     }
 
 
-def follow(planner: GoalPlanner, task: str, k: int) -> tuple[bool, list[float]]:
+def follow(planner: GoalPlanner, task: str, k: int, snap: bool = False) -> tuple[bool, list[float]]:
     """
     A point that steps greedily towards the k-th chained landmark: whether it reaches the far goal within
     FOLLOW_STEPS, and where it ends.
@@ -244,7 +246,7 @@ def follow(planner: GoalPlanner, task: str, k: int) -> tuple[bool, list[float]]:
     obs = place(env, TASKS[task]["start"], goal)
     for _ in range(FOLLOW_STEPS):
         position = obs["achieved_goal"]
-        landmark = planner.plan(position, goal.astype(np.float32), horizon=k)[-1]
+        landmark = planner.plan(position, goal.astype(np.float32), horizon=k, snap=snap)[-1]
         obs, *_ = env.step(np.clip((landmark - position) / 0.5, -1.0, 1.0))
         if np.linalg.norm(obs["achieved_goal"] - goal) <= SUCCESS_DISTANCE:
             return True, obs["achieved_goal"].round(2).tolist()
@@ -265,11 +267,14 @@ def teacher_far_path(model: UDPO, task: str) -> list[list[float]]:
     return np.array(path).round(2).tolist()
 
 
-def landmark_report(planner: GoalPlanner, task: str) -> dict[str, Any]:
-    """The imagined path's numbers and the greedy follower's outcome (``follow``) and end (``follow_end``), k = 1..5."""
-    outcomes = [follow(planner, task, k) for k in range(1, 6)]
+def landmark_report(planner: GoalPlanner, task: str, snap: bool = False) -> dict[str, Any]:
+    """
+    The imagined path's numbers and the greedy follower's outcome (``follow``) and end (``follow_end``), k = 1..5,
+    with the landmarks snapped to the planner's support goals if ``snap``.
+    """
+    outcomes = [follow(planner, task, k, snap) for k in range(1, 6)]
     return {
-        **imagined_path(planner, task),
+        **imagined_path(planner, task, snap),
         "follow": [int(reached) for reached, _ in outcomes],
         "follow_end": [end for _, end in outcomes],
     }
@@ -295,6 +300,8 @@ def run(
     result["labels"] = planner.metadata["labels"]
     result["rollout_success"] = planner.metadata.get("rollout_success")
     result["teacher_far_path"] = teacher_far_path(model, task)
+    if planner.has_support:
+        result["snapped"] = landmark_report(planner, task, snap=True)
     if planner.metadata["labels"] != "planned":  # also the distillation of the plans themselves, for comparison
         result["from_plans"] = landmark_report(distill_goal_planner(model, seed=seed, labels="planned"), task)
     result.update(
@@ -309,6 +316,14 @@ def run(
         seconds=time.perf_counter() - start_time,
     )
     return result
+
+
+def _landmarks(report: dict[str, Any], real_step: float | None = None) -> str:
+    ratio = "" if real_step is None else f", ratio {report['planned_step'] / real_step:.2f}"
+    return (
+        f"planned step {report['planned_step']:.2f}{ratio}, in walls {report['in_walls']}/{HORIZON} "
+        f"({report['wall_depth']:.2f}), follow {' '.join(map(str, report['follow']))}"
+    )
 
 
 def main() -> None:
@@ -326,12 +341,10 @@ def main() -> None:
     register_envs()
     if args.planners:
         for path in args.planners:
-            r = landmark_report(GoalPlanner.load(path), args.task)
-            print(
-                f"{path}: planned step {r['planned_step']:.2f}, in walls {r['in_walls']}/{HORIZON} ({r['wall_depth']:.2f}), "
-                f"follow {' '.join(map(str, r['follow']))}",
-                flush=True,
-            )
+            planner = GoalPlanner.load(path)
+            for snap in (False, True) if planner.has_support else (False,):
+                report = landmark_report(planner, args.task, snap)
+                print(f"{path}{' (snapped)' if snap else ''}: {_landmarks(report)}", flush=True)
         return
     udpo_kwargs, distill_kwargs = ast.literal_eval(args.udpo_kwargs), ast.literal_eval(args.distill_kwargs)
     print(f"task={args.task} steps={args.steps} udpo_kwargs={udpo_kwargs} distill_kwargs={distill_kwargs}", flush=True)
@@ -343,14 +356,9 @@ def main() -> None:
     for seed in args.seeds:
         r = run(args.task, seed, args.steps, args.checkpoints, udpo_kwargs, distill_kwargs)
         print("JSON " + json.dumps(r), flush=True)
-        if "from_plans" in r:
-            p = r["from_plans"]
-            print(
-                f"  (distilled from the plans instead: planned step {p['planned_step']:.2f}, ratio "
-                f"{p['planned_step'] / r['real_step']:.2f}, in walls {p['in_walls']}/{HORIZON} ({p['wall_depth']:.2f}), "
-                f"follow {' '.join(map(str, p['follow']))})",
-                flush=True,
-            )
+        for key, label in (("snapped", "snapped to the support goals"), ("from_plans", "distilled from the plans instead")):
+            if key in r:
+                print(f"  ({label}: {_landmarks(r[key], r['real_step'])})", flush=True)
         print(
             f"| {seed} | {' / '.join(f'{s:.2f}' for s in r['success'])} ({r['far_success']:.2f}) | {r['real_step']:.2f} "
             f"| {r['teacher_step']:.2f} / {r['teacher_error']:.2f} | {r['planned_step']:.2f} | {r['ratio']:.2f} "
