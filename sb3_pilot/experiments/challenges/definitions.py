@@ -314,13 +314,14 @@ REUSE_SHIPPED: dict[str, Challenge] = {
     "zero-shot-ant-maze": Challenge(
         "zero-shot-ant-maze-shipped",
         "the shipped Maze2D goal planner (UDPO, wall margin 1) guiding the shipped open-ground SAC Ant controller "
-        "(cpu/ant_controller_upright.yml, 350k steps) on Ant-Maze (0 Ant-Maze steps, no training stage)",
+        "(cpu/ant_controller_upright.yml, training seed 1, 400k steps) on Ant-Maze (0 Ant-Maze steps, no training stage)",
         "Pilot/AntMaze-v0",
         (
             Shipped("distill", SHIPPED_DIR / "maze2d_planner_margin1.pt"),
-            Shipped("controller", SHIPPED_DIR / "ant_controller_upright_sac_350k.zip"),
-            # k and the switch rule measured best with these files (the README's table): k = 1 and k = 2 tie on
-            # success (0.70 on seeds 0-2, 0.60 on seeds 3-5); k = 1 flips less and ends nearer the goal
+            # its checkpoint chosen on open ground only (zoo_runs/zero-shot-ant-maze/controller_seed1/README.md)
+            Shipped("controller", SHIPPED_DIR / "ant_controller_upright_seed1_sac_400k.zip"),
+            # k and the switch rule chosen with the training-seed-0 controller and this planner (controller/README.md):
+            # k = 1 and k = 2 tie on success (0.70 on seeds 0-2, 0.60 on seeds 3-5); k = 1 flips less
             Guidance(
                 "pilot",
                 "distill",
