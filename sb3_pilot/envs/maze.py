@@ -69,20 +69,18 @@ def umaze_is_free(xy: np.ndarray) -> np.ndarray:
     return np.any(np.all(offset <= UMAZE_SCALING / 2, axis=-1), axis=-1)
 
 
+#: Centres of the U-maze's wall blocks (world coordinates), computed once: every step of a wall-margin source reads them
+UMAZE_WALL_CENTERS = np.array(
+    [umaze_cell_to_xy((row, col)) for row in range(len(UMAZE_MAP)) for col in range(len(UMAZE_MAP[0])) if UMAZE_MAP[row][col]]
+)
+
+
 def umaze_wall_distance(xy: np.ndarray) -> np.ndarray:
     """
     :param xy: points of shape (..., 2) in the U-maze's world coordinates
     :return: distance of each point to the nearest wall block (0 on a wall's face or inside a wall)
     """
-    walls = np.array(
-        [
-            umaze_cell_to_xy((row, col))
-            for row in range(len(UMAZE_MAP))
-            for col in range(len(UMAZE_MAP[0]))
-            if UMAZE_MAP[row][col]
-        ]
-    )
-    offset = np.abs(np.asarray(xy, dtype=np.float64)[..., None, :] - walls) - UMAZE_SCALING / 2
+    offset = np.abs(np.asarray(xy, dtype=np.float64)[..., None, :] - UMAZE_WALL_CENTERS) - UMAZE_SCALING / 2
     return np.min(np.linalg.norm(np.maximum(offset, 0.0), axis=-1), axis=-1)
 
 
