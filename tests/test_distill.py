@@ -97,7 +97,7 @@ def test_predict_plan_save_load(point_planner, tmp_path):
     batch = point_planner.predict(np.stack([achieved] * 3), np.stack([desired] * 3))
     assert single.shape == (2,) and batch.shape == (3, 2)
     np.testing.assert_allclose(batch[1], single, rtol=1e-6)
-    path = point_planner.plan(achieved, desired, horizon=4)
+    path = point_planner.plan(achieved, desired, horizon=4, snap=False)
     assert path.shape == (4, 2)
     np.testing.assert_allclose(path[1], point_planner.predict(path[0], desired), rtol=1e-6)
     assert point_planner.plan(np.stack([achieved] * 3), np.stack([desired] * 3), horizon=4).shape == (3, 4, 2)
@@ -105,7 +105,7 @@ def test_predict_plan_save_load(point_planner, tmp_path):
     point_planner.save(tmp_path / "planner.pt")
     loaded = GoalPlanner.load(tmp_path / "planner.pt")
     assert loaded.metadata == point_planner.metadata
-    np.testing.assert_array_equal(loaded.plan(achieved, desired, horizon=4), path)
+    np.testing.assert_array_equal(loaded.plan(achieved, desired, horizon=4, snap=False), path)
 
     old = GoalPlanner(2, metadata={**point_planner.metadata, "sb3_pilot_version": "0.0.1"})
     old.save(tmp_path / "old.pt")
@@ -137,6 +137,8 @@ def test_snapped_landmarks_are_support_goals(point_teacher, rollout_planner, tmp
     np.testing.assert_array_equal(path[1], rollout_planner.predict(path[0], desired, snap=True))
     batch = rollout_planner.plan(np.stack([achieved] * 3), np.stack([desired] * 3), horizon=5, snap=True)
     np.testing.assert_array_equal(batch[2], path)
+    np.testing.assert_array_equal(rollout_planner.plan(achieved, desired, horizon=5), path)  # plan snaps by default
+    assert not (rollout_planner.plan(achieved, desired, horizon=5, snap=False) == path).all(axis=1).all()
 
     rollout_planner.save(tmp_path / "planner.pt")
     np.testing.assert_array_equal(GoalPlanner.load(tmp_path / "planner.pt").plan(achieved, desired, 5, snap=True), path)
@@ -148,6 +150,7 @@ def test_snapped_landmarks_are_support_goals(point_teacher, rollout_planner, tmp
     np.testing.assert_array_equal(older.predict(achieved, desired), free)
     with pytest.raises(ValueError, match="support goals"):
         older.predict(achieved, desired, snap=True)
+    np.testing.assert_array_equal(older.plan(achieved, desired, 5), older.plan(achieved, desired, 5, snap=False))
     none = distill_goal_planner(point_teacher, **DISTILL_KWARGS, env=Monitor(PointGoalEnv()), support_size=0)
     assert not none.has_support and none.metadata["support_size"] == 0
     for name, value in none.state_dict().items():  # the support is drawn after the fit: same weights

@@ -58,9 +58,11 @@ class GoalPlanner(nn.Module):
     ``delta_scale``; these are buffers set from the distillation data and saved with the weights.
 
     The planner may also hold a *support*: goals the source agent really occupied (``support``, set by
-    :func:`~sb3_pilot.distill.distill_goal_planner`). With ``snap=True``, :meth:`predict` and :meth:`plan` replace each
-    landmark by the nearest of them, so that every landmark is a state the source reached (never inside a wall it
-    could not enter), as planning over replay-buffer states does (SoRB, Eysenbach et al. 2019).
+    :func:`~sb3_pilot.distill.distill_goal_planner`). Snapping replaces a landmark by the nearest of them, so that it
+    is a state the source reached (never inside a wall it could not enter), as planning over replay-buffer states
+    does (SoRB, Eysenbach et al. 2019). :meth:`plan` snaps by default when there is a support: an imagined path plans
+    each landmark from the previous one, so a landmark off the states the source visited would make the next one an
+    extrapolation. :meth:`predict` (one landmark, e.g. the reward bonus's direction) does not unless asked.
 
     :param goal_dim: size of the goal vectors
     :param net_arch: hidden layer sizes
@@ -197,7 +199,7 @@ class GoalPlanner(nn.Module):
         desired_goal: np.ndarray,
         horizon: int = 1,
         deterministic: bool = True,
-        snap: bool = False,
+        snap: bool | None = None,
     ) -> np.ndarray:
         """
         Imagined path: ``horizon`` landmarks chained from ``achieved_goal``, each planned from the previous one.
@@ -206,10 +208,12 @@ class GoalPlanner(nn.Module):
         :param desired_goal: target goal(s), same shape
         :param horizon: number of landmarks ``k``
         :param deterministic: chain the means instead of samples
-        :param snap: snap every landmark to the nearest support goal before planning the next one
+        :param snap: snap every landmark to the nearest support goal before planning the next one (None: if the
+            planner holds support goals, see :attr:`has_support`)
         :return: landmarks, shape (horizon, goal_dim) or (n, horizon, goal_dim)
         """
         check_number("horizon", horizon, minimum=1, integer=True)
+        snap = self.has_support if snap is None else snap
         landmarks, goal = [], achieved_goal
         for _ in range(horizon):
             goal = self.predict(goal, desired_goal, deterministic=deterministic, snap=snap)

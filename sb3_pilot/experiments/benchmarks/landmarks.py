@@ -9,15 +9,17 @@ the distilled goal planner from the far start to the far goal, per seed:
 * ``teacher step``: at the same states, the mean distance from the state to UDPO's own planned next state (the mean
   of ``h``), and ``teacher error`` the mean distance from that plan to the state actually reached;
 * ``planned step``: mean distance between consecutive landmarks of the distilled planner's 40-landmark imagined path
-  from the far start, up to the first landmark within 1.0 of the far goal, and ``ratio`` = planned step / real step;
+  from the far start (``planner.plan``'s default: each landmark snapped to the nearest of the planner's support
+  goals, positions the source really occupied), up to the first landmark within 1.0 of the far goal, and ``ratio``
+  = planned step / real step;
 * ``in walls``: how many of the 40 chained landmarks lie inside a wall (or outside the map), and ``depth`` the
   largest distance from one of them to the free space (a landmark on a wall's face is 0 deep: a teacher that slides
   along walls gives labels on the face, and a smooth student lands on either side of it);
 * ``follow k``: a point that starts at the far start and at every step moves with the maze's own dynamics towards
   the k-th landmark chained from where it is (action ``clip((landmark - position) / 0.5, -1, 1)``) reaches the far
   goal (within 1.0) in at most 100 steps (1 or 0), for k = 1..5;
-* ``snapped``: the same imagined path and follower with every landmark snapped to the nearest of the planner's
-  support goals (``plan(..., snap=True)``: positions the source really occupied).
+* ``raw``: the same imagined path and follower with the planner's own landmarks, unsnapped
+  (``plan(..., snap=False)``).
 
 Tasks: ``maze2d`` is ``Pilot/Maze2D-v0`` with uniform goals (U-maze, far start (-4, 4), far goal (-4, -4));
 ``rooms`` is the same kinematic point (0.5 per axis and step, sliding along walls, 50-step episodes) in two 8x12
@@ -219,7 +221,7 @@ def evaluate(model: UDPO, task: str, n_episodes: int, seed: int, far: bool = Fal
     }
 
 
-def imagined_path(planner: GoalPlanner, task: str, snap: bool = False) -> dict[str, Any]:
+def imagined_path(planner: GoalPlanner, task: str, snap: bool | None = None) -> dict[str, Any]:
     start, goal = TASKS[task]["start"].astype(np.float32), TASKS[task]["goal"].astype(np.float32)
     path = np.concatenate([start[None], planner.plan(start, goal, horizon=HORIZON, snap=snap)])
     steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
@@ -235,7 +237,7 @@ def imagined_path(planner: GoalPlanner, task: str, snap: bool = False) -> dict[s
     }
 
 
-def follow(planner: GoalPlanner, task: str, k: int, snap: bool = False) -> tuple[bool, list[float]]:
+def follow(planner: GoalPlanner, task: str, k: int, snap: bool | None = None) -> tuple[bool, list[float]]:
     """
     A point that steps greedily towards the k-th chained landmark: whether it reaches the far goal within
     FOLLOW_STEPS, and where it ends.
@@ -267,10 +269,10 @@ def teacher_far_path(model: UDPO, task: str) -> list[list[float]]:
     return np.array(path).round(2).tolist()
 
 
-def landmark_report(planner: GoalPlanner, task: str, snap: bool = False) -> dict[str, Any]:
+def landmark_report(planner: GoalPlanner, task: str, snap: bool | None = None) -> dict[str, Any]:
     """
     The imagined path's numbers and the greedy follower's outcome (``follow``) and end (``follow_end``), k = 1..5,
-    with the landmarks snapped to the planner's support goals if ``snap``.
+    with the landmarks snapped to the planner's support goals if ``snap`` (None: ``planner.plan``'s default).
     """
     outcomes = [follow(planner, task, k, snap) for k in range(1, 6)]
     return {
@@ -301,9 +303,9 @@ def run(
     result["rollout_success"] = planner.metadata.get("rollout_success")
     result["teacher_far_path"] = teacher_far_path(model, task)
     if planner.has_support:
-        result["snapped"] = landmark_report(planner, task, snap=True)
+        result["raw"] = landmark_report(planner, task, snap=False)
     if planner.metadata["labels"] != "planned":  # also the distillation of the plans themselves, for comparison
-        result["from_plans"] = landmark_report(distill_goal_planner(model, seed=seed, labels="planned"), task)
+        result["from_plans"] = landmark_report(distill_goal_planner(model, seed=seed, labels="planned"), task, snap=False)
     result.update(
         success=successes,
         far_success=far["success"],
@@ -342,9 +344,9 @@ def main() -> None:
     if args.planners:
         for path in args.planners:
             planner = GoalPlanner.load(path)
-            for snap in (False, True) if planner.has_support else (False,):
+            for snap in (None, False) if planner.has_support else (None,):
                 report = landmark_report(planner, args.task, snap)
-                print(f"{path}{' (snapped)' if snap else ''}: {_landmarks(report)}", flush=True)
+                print(f"{path}{' (raw)' if snap is False else ''}: {_landmarks(report)}", flush=True)
         return
     udpo_kwargs, distill_kwargs = ast.literal_eval(args.udpo_kwargs), ast.literal_eval(args.distill_kwargs)
     print(f"task={args.task} steps={args.steps} udpo_kwargs={udpo_kwargs} distill_kwargs={distill_kwargs}", flush=True)
@@ -356,7 +358,7 @@ def main() -> None:
     for seed in args.seeds:
         r = run(args.task, seed, args.steps, args.checkpoints, udpo_kwargs, distill_kwargs)
         print("JSON " + json.dumps(r), flush=True)
-        for key, label in (("snapped", "snapped to the support goals"), ("from_plans", "distilled from the plans instead")):
+        for key, label in (("raw", "raw, unsnapped"), ("from_plans", "distilled from the plans instead")):
             if key in r:
                 print(f"  ({label}: {_landmarks(r[key], r['real_step'])})", flush=True)
         print(
