@@ -123,10 +123,10 @@ def test_stage_graphs() -> None:
             assert all(keys.index(need) < keys.index(key) for need in needs), (name, key)  # a stage after its needs
             assert all(need.split("/")[0] == key.split("/")[0] for need in needs)  # within its seed
         assert graph == {
-                f"seed_{seed}/{stage}": tuple(f"seed_{seed}/{need}" for need in needs)
-                for seed in (0, 1)
-                for stage, needs in expected[name].items()
-            }
+            f"seed_{seed}/{stage}": tuple(f"seed_{seed}/{need}" for need in needs)
+            for seed in (0, 1)
+            for stage, needs in expected[name].items()
+        }
     with pytest.raises(ValueError, match=r"reads from \['b'\], which are not before it"):
         stage_graph(tiny(Sleep("a", 0, needs=("b",)), Sleep("b", 0)), [0])
 

@@ -162,9 +162,7 @@ class PixelGoalSACPolicy(SACPolicy):
     ):
         if not share_features_extractor:
             raise ValueError("PixelGoalSACPolicy shares its encoder between actor and critic: use MultiInputPolicy not to.")
-        super().__init__(
-            *args, features_extractor_class=features_extractor_class, share_features_extractor=True, **kwargs
-        )
+        super().__init__(*args, features_extractor_class=features_extractor_class, share_features_extractor=True, **kwargs)
 
     def _build(self, lr_schedule: Any) -> None:
         self.actor = self.make_actor()
@@ -173,7 +171,9 @@ class PixelGoalSACPolicy(SACPolicy):
         actor_parameters = [param for name, param in self.actor.named_parameters() if "features_extractor" not in name]
         self.actor.optimizer = self.optimizer_class(actor_parameters, lr=lr_schedule(1), **self.optimizer_kwargs)  # type: ignore[call-arg]
         self.critic.optimizer = self.optimizer_class(
-            self.critic.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs  # type: ignore[call-arg]
+            self.critic.parameters(),
+            lr=lr_schedule(1),
+            **self.optimizer_kwargs,  # type: ignore[call-arg]
         )
         self.critic_target = self.make_critic(features_extractor=None)
         self.critic_target.load_state_dict(self.critic.state_dict())

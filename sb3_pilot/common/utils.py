@@ -40,9 +40,7 @@ def task_id(env: gym.Env | VecEnv) -> str:
     return env.spec.id if env.spec is not None else type(env.unwrapped).__name__
 
 
-def check_number(
-    name: str, value: float, minimum: float | None = None, strict: bool = False, integer: bool = False
-) -> None:
+def check_number(name: str, value: float, minimum: float | None = None, strict: bool = False, integer: bool = False) -> None:
     """
     Refuse a numeric argument that is not a finite number (an integer if ``integer``), or lies below ``minimum``, with
     a ``ValueError`` naming it.

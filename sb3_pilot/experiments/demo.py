@@ -51,9 +51,7 @@ def main(argv: list[str] | None = None) -> None:
         steps["source"] = args.source_steps
     if args.steps is not None:
         steps["pilot"] = steps["her"] = args.steps
-    summary = run_challenge(
-        CHALLENGE, BUDGET, seeds=[args.seed], root=args.root, steps=steps, progress=sys.stdout.isatty()
-    )
+    summary = run_challenge(CHALLENGE, BUDGET, seeds=[args.seed], root=args.root, steps=steps, progress=sys.stdout.isatty())
     pngs = plot_challenge(Path(args.root) / CHALLENGE)
     pilot, her = (summary["methods"][name]["runs"][0] for name in (PLANNER_TRANSFER, HER))
     source = summary["stages"][f"seed_{args.seed}/source"]
