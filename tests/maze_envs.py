@@ -16,7 +16,8 @@ class WallMazeEnv(gym.Env):
     """
     A point in ``[-1, 1]^2`` that moves kinematically (``p <- p + step_size * clip(a, -1, 1)``) with a wall along
     ``x = 0`` from ``y = -1`` up to ``y = gap_y``: to go from one side to the other at low ``y``, the point must go
-    around the wall through the gap. A move that would cross (or end in) the wall leaves the point where it is.
+    around the wall through the gap. A move that would cross (or end in) the wall leaves the point where it is, or,
+    with ``slide``, keeps its part along the wall (``y``) if that one is free, else its part across it (``x``).
 
     Dict observation: ``observation`` and ``achieved_goal`` are the position, ``desired_goal`` the target, all shifted
     by ``offset`` (to test coordinate conventions). Sparse reward: 0 within ``success_distance``, -1 otherwise.
@@ -28,6 +29,8 @@ class WallMazeEnv(gym.Env):
     :param gap_y: the wall covers ``y < gap_y``
     :param success_distance: distance under which the goal counts as reached
     :param offset: shift of every reported coordinate
+    :param slide: a blocked move slides along the wall instead of leaving the point where it is
+    :param wall_half_width: half the wall's width (default: the class attribute, 0.05)
     """
 
     metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012
@@ -40,12 +43,17 @@ class WallMazeEnv(gym.Env):
         gap_y: float = 0.0,
         success_distance: float = 0.1,
         offset: float = 0.0,
+        slide: bool = False,
+        wall_half_width: float | None = None,
     ):
         self.max_episode_steps = max_episode_steps
         self.step_size = step_size
         self.gap_y = gap_y
         self.success_distance = success_distance
         self.offset = offset
+        self.slide = slide
+        if wall_half_width is not None:
+            self.wall_half_width = wall_half_width
         box = spaces.Box(-1.0 + offset, 1.0 + offset, shape=(2,), dtype=np.float32)
         self.observation_space = spaces.Dict({"observation": box, "achieved_goal": box, "desired_goal": box})
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
@@ -88,6 +96,11 @@ class WallMazeEnv(gym.Env):
         target = np.clip(self.position + self.step_size * np.clip(action, -1.0, 1.0), -1.0, 1.0)
         if not self.blocked(self.position, target):
             self.position = target
+        elif self.slide:  # the move along the wall (y), else across it (x), else none
+            for partial in (np.array([self.position[0], target[1]]), np.array([target[0], self.position[1]])):
+                if not self.blocked(self.position, partial):
+                    self.position = partial
+                    break
         self.steps += 1
         obs = self._obs()
         reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], {}))
@@ -108,6 +121,13 @@ SMALL_HER_SETTINGS: dict[str, Any] = {
     "policy_kwargs": {"net_arch": [64, 64]},
 }
 
+#: UDPO's own settings on top of :data:`SMALL_HER_SETTINGS` (those of :func:`train_udpo`).
+UDPO_SETTINGS: dict[str, Any] = {
+    "inverse_dynamics_interval": 200,
+    "inverse_dynamics_learning_rate": 1e-3,
+    "inverse_dynamics_gradient_steps": 50,
+}
+
 
 @functools.cache
 def train_udpo(
@@ -118,9 +138,7 @@ def train_udpo(
         "MultiInputPolicy",
         Monitor(env_class()),
         **SMALL_HER_SETTINGS,
-        inverse_dynamics_interval=200,
-        inverse_dynamics_learning_rate=1e-3,
-        inverse_dynamics_gradient_steps=50,
+        **UDPO_SETTINGS,
         planner_coef=planner_coef,
         plan_target=plan_target,
         seed=seed,
