@@ -14,7 +14,9 @@ demo: $(VENV)/.installed
 
 test: $(VENV)/.installed
 	$(VENV)/bin/ruff check sb3_pilot tests
+	$(VENV)/bin/ruff format --check sb3_pilot tests
 	$(PY) -m pytest -n 2 -q tests
 
 lint: $(VENV)/.installed
 	$(VENV)/bin/ruff check sb3_pilot tests
+	$(VENV)/bin/ruff format --check sb3_pilot tests
