@@ -67,7 +67,11 @@ PAPER_UDPO = {  # lambda, Delta
     "Pilot/PointLocomotion-v0": (5e-3, 1500),
 }
 #: gymnasium-robotics' own goal tasks, covered under their own IDs by udpo.yml and sac.yml (not in the paper)
-ROBOTICS = ("FetchReach-v4", "FetchPush-v4", "PointMaze_UMaze-v3", "AntMaze_UMaze-v5")
+ROBOTICS = (
+    *("FetchReach-v4", "FetchPush-v4", "FetchSlide-v4", "FetchPickAndPlace-v4"),
+    *(f"PointMaze_{name}-v3" for name in ("Open", "UMaze", "Medium", "Large")),
+    *(f"AntMaze_{name}-v5" for name in ("Open", "UMaze", "Medium", "Large")),
+)
 UDPO_TRANSFER_SOURCES = {
     "Pilot/FetchReachHighDim-v0": "Pilot/FetchReach-v0",
     "Pilot/FetchPushHighDim-v0": "Pilot/FetchPush-v0",
@@ -125,9 +129,14 @@ def test_robotics_entries() -> None:
     for key in ("gamma", "learning_rate", "batch_size", "learning_starts", "normalize", "buffer_size"):
         assert ours[key] == zoo_fetch_reach[key], key
     udpo_keys = {"planner_coef", "planner_learning_rate", "inverse_dynamics_learning_rate", "inverse_dynamics_interval"}
+    register()  # gymnasium-robotics' IDs
     for env_id in ROBOTICS:
         sac, udpo = load("sac.yml")[env_id], load("udpo.yml")[env_id]
         assert set(udpo) - set(sac) == udpo_keys and all(udpo[key] == value for key, value in sac.items()), env_id
+        episode = gym.registry[env_id].max_episode_steps
+        for name in FILES:  # HER samples only once every env has ended an episode
+            params = load(name).get(env_id)
+            assert params is None or params["learning_starts"] >= episode * params.get("n_envs", 1), (name, env_id)
 
 
 @pytest.mark.parametrize("name", list(PAPER_FILES))
