@@ -10,6 +10,7 @@ from stable_baselines3 import HerReplayBuffer
 from stable_baselines3.common.monitor import Monitor
 
 from sb3_pilot import UDPO
+from sb3_pilot.distill import GoalPlanner
 
 
 class WallMazeEnv(gym.Env):
@@ -109,6 +110,24 @@ class WallMazeEnv(gym.Env):
     def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
         distance = np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
         return -(distance > self.success_distance).astype(np.float32)
+
+
+#: Start and goal on either side of :class:`WallMazeEnv`'s wall, below its gap (unshifted coordinates)
+WALL_START, WALL_GOAL = np.array([-0.5, -0.6], dtype=np.float32), np.array([0.5, -0.6], dtype=np.float32)
+
+
+def wall_landmark_path(planner: GoalPlanner, snap: bool | None = None) -> np.ndarray:
+    """A planner's 30 landmarks from :data:`WALL_START` to :data:`WALL_GOAL`, the start first."""
+    return np.concatenate([WALL_START[None], planner.plan(WALL_START, WALL_GOAL, horizon=30, snap=snap)])
+
+
+def wall_crossing_y(path: np.ndarray) -> float:
+    """Where a path first crosses ``x = 0`` (the wall's line), NaN if it never does."""
+    crossings = np.flatnonzero(np.diff(np.sign(path[:, 0])) != 0)
+    if len(crossings) == 0:
+        return float("nan")
+    (x0, y0), (x1, y1) = path[crossings[0]], path[crossings[0] + 1]
+    return float(y0 + (y1 - y0) * x0 / (x0 - x1))
 
 
 #: The off-policy settings that solve the tiny test envs, UDPO's and SAC's alike.

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch as th
 from goal_envs import PointGoalEnv
-from maze_envs import WallMazeEnv, train_udpo
+from maze_envs import WALL_GOAL, WALL_START, WallMazeEnv, train_udpo, wall_crossing_y, wall_landmark_path
 from stable_baselines3 import HerReplayBuffer
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
@@ -208,9 +208,8 @@ def test_wall_maze_landmarks_go_around_the_wall():
     (tests/wall_maze_teacher.py, zoo_runs/landmarks/logs/wall_maze_teacher_*.log).
     """
     model = train_udpo(WallMazeEnv, total_timesteps=16_000, planner_coef=0.0)
-    start, goal = np.array([-0.5, -0.6], dtype=np.float32), np.array([0.5, -0.6], dtype=np.float32)
     env = WallMazeEnv()
-    obs, _ = env.reset(options={"start": start, "goal": goal})
+    obs, _ = env.reset(options={"start": WALL_START, "goal": WALL_GOAL})
     for _ in range(env.max_episode_steps):
         obs, _, _, _, info = env.step(model.predict(obs, deterministic=True)[0])
         if info["is_success"]:
@@ -218,14 +217,12 @@ def test_wall_maze_landmarks_go_around_the_wall():
     assert info["is_success"], f"the teacher does not go around the wall: it ends at {env.position}"
 
     planner = distill_goal_planner(model, n_samples=20_000, gradient_steps=5000, net_arch=[256, 256])
-    for plan_kwargs in ({}, {"snap": False}):
-        path = np.concatenate([start[None], planner.plan(start, goal, horizon=30, **plan_kwargs)])
-        crossings = np.flatnonzero(np.diff(np.sign(path[:, 0])) != 0)
-        assert len(crossings) > 0, f"{plan_kwargs}: the landmarks never reach the goal's side: {path}"
-        (x0, y0), (x1, y1) = path[crossings[0]], path[crossings[0] + 1]
-        crossing_y = y0 + (y1 - y0) * x0 / (x0 - x1)
-        assert crossing_y > -0.1, f"{plan_kwargs}: the landmarks cross the wall at y = {crossing_y} (gap at y > 0): {path}"
-        assert np.linalg.norm(path[-1] - goal) < env.success_distance, f"{plan_kwargs}: short of the goal: {path}"
+    for snap in (None, False):  # plan's default (snapped: the planner has support goals), raw
+        path = wall_landmark_path(planner, snap)
+        crossing_y = wall_crossing_y(path)
+        assert not np.isnan(crossing_y), f"snap={snap}: the landmarks never reach the goal's side: {path}"
+        assert crossing_y > -0.1, f"snap={snap}: the landmarks cross the wall at y = {crossing_y} (gap at y > 0): {path}"
+        assert np.linalg.norm(path[-1] - WALL_GOAL) < env.success_distance, f"snap={snap}: short of the goal: {path}"
 
 
 def test_reached_labels_are_the_forward_model_step_of_the_teacher_action():

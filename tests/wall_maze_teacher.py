@@ -26,14 +26,14 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import torch as th
-from maze_envs import SMALL_HER_SETTINGS, UDPO_SETTINGS, WallMazeEnv
+from maze_envs import SMALL_HER_SETTINGS, UDPO_SETTINGS, WallMazeEnv, wall_crossing_y, wall_landmark_path
 from stable_baselines3 import SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.monitor import Monitor
 
 from sb3_pilot import UDPO
-from sb3_pilot.distill import GoalPlanner, distill_goal_planner
+from sb3_pilot.distill import distill_goal_planner
 
 PAIRS = [((-0.5, -0.6), (0.5, -0.6)), ((0.5, -0.6), (-0.5, -0.6)), ((-0.5, -0.3), (0.6, -0.8)), ((-0.7, -0.8), (0.3, -0.5))]
 
@@ -61,17 +61,6 @@ def cross_wall_successes(
             if ends is not None:
                 ends.append(env.position.round(2).tolist())
     return wins
-
-
-def landmark_crossing(planner: GoalPlanner, snap: bool) -> float:
-    """The test's check: ``y`` where the landmark path from (-0.5, -0.6) to (0.5, -0.6) first crosses ``x = 0``."""
-    start, goal = np.array([-0.5, -0.6], dtype=np.float32), np.array([0.5, -0.6], dtype=np.float32)
-    path = np.concatenate([start[None], planner.plan(start, goal, horizon=30, snap=snap)])
-    crossings = np.flatnonzero(np.diff(np.sign(path[:, 0])) != 0)
-    if len(crossings) == 0:
-        return np.nan
-    (x0, y0), (x1, y1) = path[crossings[0]], path[crossings[0] + 1]
-    return float(y0 + (y1 - y0) * x0 / (x0 - x1))
 
 
 class Recorder(gym.Wrapper):
@@ -160,8 +149,8 @@ class CrossWallEval(BaseCallback):
                 if self.distill_kwargs is not None:
                     planner = distill_goal_planner(self.model, **self.distill_kwargs, env=Monitor(env))
                     landmarks = (
-                        f" | landmarks cross x = 0 at y = {landmark_crossing(planner, True):.2f} (snapped), "
-                        f"{landmark_crossing(planner, False):.2f} (not snapped)"
+                        f" | landmarks cross x = 0 at y = {wall_crossing_y(wall_landmark_path(planner, True)):.2f} (snapped), "
+                        f"{wall_crossing_y(wall_landmark_path(planner, False)):.2f} (not snapped)"
                     )
             new = self.recorder.episodes[self.seen :]
             self.seen = len(self.recorder.episodes)

@@ -170,10 +170,8 @@ class PixelGoalSACPolicy(SACPolicy):
         # the actor's optimizer leaves the shared encoder alone; the critic's trains it
         actor_parameters = [param for name, param in self.actor.named_parameters() if "features_extractor" not in name]
         self.actor.optimizer = self.optimizer_class(actor_parameters, lr=lr_schedule(1), **self.optimizer_kwargs)  # type: ignore[call-arg]
-        self.critic.optimizer = self.optimizer_class(
-            self.critic.parameters(),
-            lr=lr_schedule(1),
-            **self.optimizer_kwargs,  # type: ignore[call-arg]
+        self.critic.optimizer = self.optimizer_class(  # type: ignore[call-arg]
+            self.critic.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs
         )
         self.critic_target = self.make_critic(features_extractor=None)
         self.critic_target.load_state_dict(self.critic.state_dict())
