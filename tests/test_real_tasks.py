@@ -63,5 +63,7 @@ def test_udpo_runs_where_sac_runs(env_id: str, max_episode_steps: int, steps: in
             landmark = planner.predict(obs["achieved_goal"], obs["desired_goal"])
             assert planner.metadata["source_task"] == env_id and landmark.shape == obs["achieved_goal"].shape
             assert np.all(np.isfinite(landmark))
+            if labels == "rollouts":  # 4 episodes ended; the mazes report "success", Fetch "is_success"
+                assert 0.0 <= planner.metadata["rollout_success"] <= 1.0
         model.learn(max_episode_steps, reset_num_timesteps=False)  # training goes on after the rollouts
     env.close()

@@ -196,7 +196,8 @@ def rollout_pairs(
                 reached = next_obs["achieved_goal"].copy()
                 for index in np.flatnonzero(dones):  # the env reset: the real next state is the terminal observation
                     reached[index] = infos[index]["terminal_observation"]["achieved_goal"]
-                    successes.append(float(infos[index].get("is_success", np.nan)))
+                    # SB3's key, else gymnasium-robotics' mazes' ("success"), else unknown
+                    successes.append(float(infos[index].get("is_success", infos[index].get("success", np.nan))))
                 seen.append(obs)
                 reached_goals.append(reached)
                 obs = next_obs
@@ -212,7 +213,8 @@ def rollout_pairs(
     if vec_normalize is not None:  # back to raw coordinates, once
         next_goals = vec_normalize.unnormalize_obs({**observations, "achieved_goal": next_goals})["achieved_goal"]
         observations = vec_normalize.unnormalize_obs(observations)  # type: ignore[assignment]
-    return observations, next_goals, float(np.nanmean(successes)) if successes else np.nan
+    known = [success for success in successes if not np.isnan(success)]
+    return observations, next_goals, float(np.mean(known)) if known else np.nan
 
 
 def distillation_data(
