@@ -58,6 +58,7 @@ PAPER_HER = {
     "Pilot/FetchReachImage-v0": (1e6, 2048, 1, 3e-4, 3e-4),
     "Pilot/ReacherImage-v0": (1e6, 2048, 4, 3e-4, 1e-3),
     "Pilot/AntLocomotion-v0": (1e6, 4096, 4, 3e-4, 1e-3),
+    "Pilot/Maze2DCar-v0": (1e5, 128, 1, 3e-4, 3e-4),  # in no table: Maze2D's values (same maze and goals)
 }
 PAPER_UDPO = {  # lambda, Delta
     "Pilot/FetchReach-v0": (1e-2, 200),
@@ -82,6 +83,7 @@ PLANNER_SOURCES = {
     "Pilot/AntLocomotion-v0": "Pilot/PointLocomotion-v0",
     "Pilot/FetchReachHighDim-v0": "Pilot/FetchReach-v0",
     "Pilot/FetchPushHighDim-v0": "Pilot/FetchPush-v0",
+    "Pilot/Maze2DCar-v0": "Pilot/Maze2D-v0",
 }
 
 

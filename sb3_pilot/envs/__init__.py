@@ -32,6 +32,7 @@ PILOT_ENV_SPECS: dict[str, tuple[str, dict[str, Any], int]] = {
     "Pilot/PointLocomotion-v0": ("sb3_pilot.envs.locomotion:PointLocomotionEnv", {}, 500),
     "Pilot/AntLocomotion-v0": ("sb3_pilot.envs.locomotion:AntLocomotionEnv", {}, 100),
     "Pilot/Maze2D-v0": ("sb3_pilot.envs.maze:Maze2DEnv", {}, 50),
+    "Pilot/Maze2DCar-v0": ("sb3_pilot.envs.car:Maze2DCarEnv", {}, 50),
     "Pilot/AntMaze-v0": ("sb3_pilot.envs.maze:AntMazeEnv", {}, 500),
 }
 PILOT_ENV_IDS: tuple[str, ...] = tuple(PILOT_ENV_SPECS)

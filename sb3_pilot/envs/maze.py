@@ -164,6 +164,20 @@ def _slide_axis(position: np.ndarray, delta: float, axis: int) -> np.ndarray:
     return moved if umaze_is_free(moved) else position
 
 
+def umaze_move(position: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """
+    Move a free point by ``delta`` in the U-maze, first along x then along y; a move into a wall stops at the
+    wall's face, so the point slides along walls (the motion of ``Pilot/Maze2D-v0`` and ``Pilot/Maze2DCar-v0``).
+
+    :param position: current free xy
+    :param delta: displacement (each coordinate smaller than a cell)
+    :return: the new free xy
+    """
+    for axis in (0, 1):
+        position = _slide_axis(position, float(delta[axis]), axis)
+    return position
+
+
 class Maze2DEnv(GoalReachingMixin, gym.Env):
     """
     ``Pilot/Maze2D-v0``: a point that moves kinematically in the U-maze (pure numpy).
@@ -205,9 +219,7 @@ class Maze2DEnv(GoalReachingMixin, gym.Env):
         return obs, self._goal_reward_info(obs)[1]
 
     def step(self, action: np.ndarray):
-        delta = self.step_size * np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
-        for axis in (0, 1):
-            self.position = _slide_axis(self.position, delta[axis], axis)
+        self.position = umaze_move(self.position, self.step_size * np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0))
         obs = self._get_obs()
         reward, info = self._goal_reward_info(obs)
         return obs, reward, False, False, info

@@ -168,13 +168,17 @@ def _high_dim_stages(source_env: str, target_env: str) -> tuple[Stage, ...]:
     )
 
 
-def _bonus_stages(source_env: str, target_env: str) -> tuple[Stage, ...]:
+def _bonus_stages(source_env: str, target_env: str, source_env_kwargs: dict[str, Any] | None = None) -> tuple[Stage, ...]:
     """
     Source UDPO -> distilled goal planner -> HER + PILoT with the paper's similarity (``pilot``) and with the
     displacement one (``pilot_disp``); SAC + HER from scratch (``her``). Same target YAML values for all three.
+
+    :param source_env: the source task
+    :param target_env: the target task
+    :param source_env_kwargs: task options of the source (the zoo's ``--env-kwargs``)
     """
     return (
-        ZooTrain("source", "udpo", source_env, "udpo.yml", save_replay_buffer=True),
+        ZooTrain("source", "udpo", source_env, "udpo.yml", save_replay_buffer=True, env_kwargs=source_env_kwargs or {}),
         Distill("distill", "source"),
         ZooTrain(
             "pilot",
@@ -259,6 +263,21 @@ CHALLENGES: dict[str, Challenge] = {
                 # final distance 1.32 (the goals' mean distance: no progress) / 0.87 / 1.00 / 0.66 / 0.47; 300k is
                 # the most that fits 3 methods x 2 seeds in one session on 2 cores
                 "cpu": {"source": 50_000, "pilot": 300_000, "pilot_disp": 300_000, "her": 300_000},
+            },
+        ),
+        Challenge(
+            "maze-car",
+            "UDPO on 2D-Maze (a point) -> distilled goal planner -> HER + bonus on Maze-Car (a car-like agent in the "
+            "same maze: speed and turn rate), vs SAC+HER",
+            "Pilot/Maze2DCar-v0",
+            # uniform starts and goals on both tasks: the planner knows the maze everywhere, and the car's 50-step
+            # episodes cannot join the two ends of the U (about 24 units at 0.5 a step, and turns)
+            _bonus_stages("Pilot/Maze2D-v0", "Pilot/Maze2DCar-v0", {"goal_distribution": "uniform"}),
+            steps={
+                "smoke": {"source": 300, "pilot": 300, "pilot_disp": 300, "her": 300},
+                # the target's budget was fixed from SAC+HER's runs alone, before any HER+PILoT run
+                # (zoo_runs/maze-car/README.md); the source's 12k steps: UDPO reached 1.0 on Maze2D at 12k
+                "cpu": {"source": 12_000, "pilot": 20_000, "pilot_disp": 20_000, "her": 20_000},
             },
         ),
         Challenge(
