@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import warnings
 from typing import NamedTuple
 
 import numpy as np
@@ -95,6 +96,18 @@ def _check_teacher(model: UDPO) -> None:
         )
     if "desired_goal" not in model.observation_space.spaces:
         raise ValueError("distill_goal_planner needs 'desired_goal' in the observation: it is the target goal g_target.")
+    if model.num_timesteps == 0:
+        raise ValueError(
+            "distill_goal_planner needs a trained teacher, but the model has taken 0 env steps (num_timesteps=0): "
+            "call model.learn(...) first, or load a trained model."
+        )
+    if model._n_updates == 0:
+        warnings.warn(
+            f"The teacher has taken {model.num_timesteps} env steps but no gradient step (learning_starts="
+            f"{model.learning_starts}): its state planner and inverse dynamics are still their random initialisation, "
+            "and so will the distilled planner's landmarks be.",
+            stacklevel=3,
+        )
 
 
 def _teacher_buffer(model: UDPO) -> DictReplayBuffer:

@@ -24,7 +24,9 @@ def main(argv: list[str] | None = None) -> None:
     )
     parser.add_argument("challenge", choices=[*CHALLENGES, "all"])
     parser.add_argument("--budget", choices=list(BUDGETS), default="smoke")
-    parser.add_argument("--seeds", type=int, default=1, help="number of seeds (0 .. N-1)")
+    parser.add_argument(
+        "--seeds", type=int, default=1, help="number of seeds: N runs seeds 0 .. N-1 (--seeds 1 is seed 0 alone)"
+    )
     parser.add_argument("--root", default="zoo_runs", help="output root: writes ROOT/CHALLENGE/")
     parser.add_argument("--plot", action="store_true", help="render the PNGs afterwards (sb3_pilot.experiments.plots)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars (in the stages' logs)")
@@ -50,6 +52,8 @@ def main(argv: list[str] | None = None) -> None:
         "writes ROOT/CHALLENGE-shipped/",
     )
     args = parser.parse_args(argv)
+    if args.seeds < 1:
+        parser.error(f"--seeds is the number of seeds (0 .. N-1), at least 1, got {args.seeds}: --seeds 1 runs seed 0")
     if args.backend == "ray" and args.jobs != 1:
         parser.error("--jobs is for the local backend: Ray runs as many stages at once as the cluster has CPUs")
     # SIGTERM ends the run as Ctrl-C does: the running stages are stopped (Ray tasks cancelled), none is left behind

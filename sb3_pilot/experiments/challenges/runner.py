@@ -198,6 +198,11 @@ def run_challenge(
         raise ValueError(f"Unknown backend {backend!r}, choose one of {list(BACKENDS)}.")
     if jobs < 1 or threads < 1:
         raise ValueError(f"jobs and threads must be at least 1, not {jobs} and {threads}.")
+    seeds = list(seeds)
+    if not seeds:
+        raise ValueError("seeds is empty: a challenge needs at least one seed (e.g. seeds=[0]).")
+    if len(set(seeds)) != len(seeds):
+        raise ValueError(f"seeds has repeated values: {seeds}.")
     if backend == "ray" and jobs != 1:
         raise ValueError("jobs is for the local backend: Ray runs as many stages at once as the cluster has CPUs.")
     budget = BUDGETS[budget] if isinstance(budget, str) else budget
