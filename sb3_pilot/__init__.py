@@ -7,7 +7,7 @@ paper's tasks. :mod:`sb3_pilot.experiments` (the RL-Zoo entry, challenges, bench
 library and is never imported by it.
 """
 
-from sb3_pilot.distill import GoalPlanner, distill_goal_planner, share_goal_space
+from sb3_pilot.distill import GoalMap, GoalPlanner, distill_goal_planner, share_goal_space
 from sb3_pilot.envs import register_envs
 from sb3_pilot.transfer import (
     LandmarkGuidance,
@@ -23,6 +23,7 @@ register_envs()  # the Pilot/...-v0 tasks (also what `rl_zoo3 --gym-packages sb3
 
 __all__ = [
     "UDPO",
+    "GoalMap",
     "GoalPlanner",
     "LandmarkGuidance",
     "PilotBonusWrapper",

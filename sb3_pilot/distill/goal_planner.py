@@ -15,6 +15,7 @@ from torch import nn
 
 from sb3_pilot.common.distributions import LOG_STD_MAX, LOG_STD_MIN, gaussian_log_prob
 from sb3_pilot.common.utils import check_number, task_id
+from sb3_pilot.distill.goal_map import GoalMap
 from sb3_pilot.version import __version__
 
 #: Groups of task IDs whose goals have the same meaning in the same coordinates (the paper's transfer pairs):
@@ -28,24 +29,64 @@ SHARED_GOAL_SPACES: list[frozenset[str]] = [
 ]
 
 
-def share_goal_space(*task_ids: str) -> None:
+#: Known maps between the goal coordinates of two tasks (:func:`share_goal_space` with ``goal_map``):
+#: ``GOAL_MAPS[(first, second)]`` maps the first task's goals to the second's.
+GOAL_MAPS: dict[tuple[str, str], GoalMap] = {}
+
+
+def share_goal_space(*task_ids: str, goal_map: GoalMap | None = None) -> None:
     """
     Declare that tasks share one goal space, so a planner distilled on one of them may guide the others.
 
-    :param task_ids: Gymnasium IDs (or, for unregistered envs, class names) of the tasks
+    With ``goal_map``, two tasks whose goals mean the same in other coordinates, ``g_second = goal_map(g_first)``:
+    e.g. ``share_goal_space("PointMaze_UMaze-v3", "AntMaze_UMaze-v5", goal_map=GoalMap(4.0))``. A planner of either
+    task plans for the other through the map (both directions are declared).
+
+    :param task_ids: Gymnasium IDs (or, for unregistered envs, class names) of the tasks (exactly two with ``goal_map``)
+    :param goal_map: the map from the first task's goal coordinates to the second's (None: the same coordinates)
     """
     if len(task_ids) < 2:
         raise ValueError(f"share_goal_space needs at least two task IDs, got {task_ids}.")
-    SHARED_GOAL_SPACES.append(frozenset(task_ids))
+    if goal_map is None:
+        mapped = [pair for pair in GOAL_MAPS if set(pair) <= set(task_ids)]
+        if mapped:
+            raise ValueError(
+                f"{mapped[0]} already share a goal space through {GOAL_MAPS[mapped[0]]}, not the same coordinates."
+            )
+        SHARED_GOAL_SPACES.append(frozenset(task_ids))
+        return
+    if len(task_ids) != 2 or task_ids[0] == task_ids[1]:
+        raise ValueError(f"goal_map relates two different tasks, g_second = goal_map(g_first); got {task_ids}.")
+    first, second = task_ids
+    if shares_goal_space(first, second):
+        raise ValueError(f"{first!r} and {second!r} already share a goal space ({goal_map_between(first, second)}).")
+    GOAL_MAPS[(first, second)], GOAL_MAPS[(second, first)] = goal_map, goal_map.inverse()
 
 
 def shares_goal_space(source_task: str, target_task: str) -> bool:
     """
     :param source_task: task a planner was distilled on
     :param target_task: task it is asked to plan for
-    :return: whether the two tasks are the same or were declared to share their goal space
+    :return: whether the two tasks are the same or were declared to share their goal space (with a map or without)
     """
-    return source_task == target_task or any({source_task, target_task} <= group for group in SHARED_GOAL_SPACES)
+    return (
+        source_task == target_task
+        or any({source_task, target_task} <= group for group in SHARED_GOAL_SPACES)
+        or (source_task, target_task) in GOAL_MAPS
+    )
+
+
+def goal_map_between(source_task: str, target_task: str) -> GoalMap | None:
+    """
+    :param source_task: task a planner was distilled on
+    :param target_task: task it is asked to plan for
+    :return: the map from the source's goal coordinates to the target's (:func:`share_goal_space`), None for the same
+        coordinates
+    :raises ValueError: when the tasks were not declared to share a goal space
+    """
+    if not shares_goal_space(source_task, target_task):
+        raise ValueError(f"{source_task!r} and {target_task!r} were not declared to share a goal space.")
+    return GOAL_MAPS.get((source_task, target_task))
 
 
 class GoalPlanner(nn.Module):
@@ -170,7 +211,11 @@ class GoalPlanner(nn.Module):
         goals = np.asarray(goals, dtype=np.float32)
         if goals.shape[-1:] != (self.goal_dim,) or goals.ndim > 2:
             raise ValueError(f"{name} must have shape ({self.goal_dim},) or (n, {self.goal_dim}), got {goals.shape}.")
-        return th.as_tensor(goals.reshape(-1, self.goal_dim), device=self.goal_mean.device)
+        goals = goals.reshape(-1, self.goal_dim)
+        if not np.isfinite(goals).all():
+            bad = goals[~np.isfinite(goals).all(axis=1)]
+            raise ValueError(f"{name} holds NaN or infinite values in {len(bad)} of its {len(goals)} goals: {bad[:3]}.")
+        return th.as_tensor(goals, device=self.goal_mean.device)
 
     def predict(
         self, achieved_goal: np.ndarray, desired_goal: np.ndarray, deterministic: bool = True, snap: bool = False
@@ -183,6 +228,7 @@ class GoalPlanner(nn.Module):
         :param deterministic: return the mean instead of a sample
         :param snap: replace the landmark by the nearest support goal (a state the source reached, see :meth:`snap`)
         :return: next goal(s), same shape as ``achieved_goal``
+        :raises ValueError: if a goal has the wrong size, or holds NaN or infinite values
         """
         achieved = self._to_tensor(achieved_goal, "achieved_goal")
         desired = self._to_tensor(desired_goal, "desired_goal")
@@ -211,6 +257,7 @@ class GoalPlanner(nn.Module):
         :param snap: snap every landmark to the nearest support goal before planning the next one (None: if the
             planner holds support goals, see :attr:`has_support`)
         :return: landmarks, shape (horizon, goal_dim) or (n, horizon, goal_dim)
+        :raises ValueError: as :meth:`predict`
         """
         check_number("horizon", horizon, minimum=1, integer=True)
         snap = self.has_support if snap is None else snap
@@ -266,23 +313,25 @@ class GoalPlanner(nn.Module):
         return planner.to(device)
 
     @classmethod
-    def for_env(cls, planner: GoalPlanner | str | os.PathLike, env: gym.Env) -> GoalPlanner:
+    def for_env(cls, planner: GoalPlanner | str | os.PathLike, env: gym.Env) -> tuple[GoalPlanner, GoalMap | None]:
         """
-        The planner (loaded, if a path is given), after :meth:`check_env` has accepted ``env``.
+        The planner (loaded, if a path is given), after :meth:`check_env` has accepted ``env``, and the map from its
+        goal coordinates to the env's.
 
         :param planner: a goal planner or the path of its file
         :param env: the goal env it will plan for
+        :return: the planner, and the map from its goal coordinates to the env's (None: the same coordinates)
         """
         planner = planner if isinstance(planner, GoalPlanner) else cls.load(planner)
-        planner.check_env(env)
-        return planner
+        return planner, planner.check_env(env)
 
-    def check_env(self, env: gym.Env) -> None:
+    def check_env(self, env: gym.Env) -> GoalMap | None:
         """
         Refuse an env this planner cannot plan for: one whose goal entries have another size, or whose task does not
         share the goal space of the planner's source task (see :func:`share_goal_space`).
 
         :param env: a goal env (Dict observation with ``achieved_goal`` and ``desired_goal``)
+        :return: the map from the planner's goal coordinates to the env's, None when they are the same
         :raises ValueError: naming what does not fit
         """
         obs_space = env.observation_space
@@ -302,5 +351,10 @@ class GoalPlanner(nn.Module):
             raise ValueError(
                 f"The goal planner was distilled on '{self.source_task}', whose goal space is not that of '{target_task}'. "
                 "If their goals have the same meaning in the same coordinates, declare it with "
-                f"sb3_pilot.share_goal_space({self.source_task!r}, {target_task!r})."
+                f"sb3_pilot.share_goal_space({self.source_task!r}, {target_task!r}); if in coordinates related by a known "
+                "affine map, add goal_map=sb3_pilot.GoalMap(matrix, offset) (target goal = matrix @ source goal + offset)."
             )
+        goal_map = goal_map_between(self.source_task, target_task)
+        if goal_map is not None:
+            goal_map.check_goal_dim(self.goal_dim)
+        return goal_map

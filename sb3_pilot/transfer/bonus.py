@@ -61,7 +61,9 @@ class PilotBonusWrapper(gym.RewardWrapper):
 
     :param env: a goal env (Dict observation with ``achieved_goal`` and ``desired_goal``)
     :param planner: the distilled goal planner, or the path of its file (:meth:`GoalPlanner.save`); its goal size and
-        source task are checked against ``env``
+        source task are checked against ``env``. When the source task's goals are the env's in other coordinates
+        (:func:`~sb3_pilot.share_goal_space` with a ``goal_map``), the env's goals are mapped into the planner's
+        coordinates and the landmark back: the bonus, also of HER's relabelled goals, is in the env's coordinates
     :param beta: bonus ratio ``beta``
     :param similarity: ``"displacement_cosine"`` or ``"goal_cosine"``
     """
@@ -77,7 +79,7 @@ class PilotBonusWrapper(gym.RewardWrapper):
         if similarity not in SIMILARITIES:
             raise ValueError(f"Unknown similarity {similarity!r}, choose one of {SIMILARITIES}.")
         super().__init__(env)
-        self.planner = GoalPlanner.for_env(planner, env)
+        self.planner, self.goal_map = GoalPlanner.for_env(planner, env)
         self.beta = beta
         self.similarity = similarity
         self._achieved_goal: np.ndarray | None = None
@@ -92,7 +94,10 @@ class PilotBonusWrapper(gym.RewardWrapper):
         :param desired_goal: ``g_target``, same shape
         :return: float32 array of shape () or (n,)
         """
-        landmark = self.planner.predict(previous_achieved_goal, desired_goal)
+        if self.goal_map is None:
+            landmark = self.planner.predict(previous_achieved_goal, desired_goal)
+        else:  # the planner plans in its source task's coordinates
+            landmark = self.goal_map.through(self.planner.predict, previous_achieved_goal, desired_goal)
         if self.similarity == "goal_cosine":
             return cosine_similarity(achieved_goal, landmark).astype(np.float32)
         return cosine_similarity(achieved_goal - previous_achieved_goal, landmark - previous_achieved_goal).astype(np.float32)

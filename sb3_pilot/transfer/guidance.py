@@ -26,7 +26,8 @@ class LandmarkGuidance(gym.Wrapper):
 
     :param env: a goal env (Dict observation with ``achieved_goal`` and ``desired_goal``)
     :param planner: the distilled goal planner, or the path of its file; its goal size and source task are checked
-        against ``env``
+        against ``env``. With a ``goal_map`` between the source task and the env's (:func:`~sb3_pilot.share_goal_space`),
+        the planner plans in its coordinates and the landmarks are mapped into the env's
     :param horizon: number ``k`` of chained planner steps to the landmark
     :param switch_distance: distance to the real goal under which it replaces the landmark (None: the landmark's
         distance; 0: never)
@@ -47,7 +48,7 @@ class LandmarkGuidance(gym.Wrapper):
         if switch_distance is not None:
             check_number("switch_distance", switch_distance, minimum=0)
         super().__init__(env)
-        self.planner = GoalPlanner.for_env(planner, env)
+        self.planner, self.goal_map = GoalPlanner.for_env(planner, env)
         self.horizon = horizon
         self.switch_distance = switch_distance
         self.snap = snap
@@ -69,10 +70,17 @@ class LandmarkGuidance(gym.Wrapper):
 
     def landmark(self, achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
         """The goal to show the controller at ``achieved_goal`` for the real goal ``desired_goal``."""
-        landmark = self.planner.plan(achieved_goal, desired_goal, horizon=self.horizon, snap=self.snap)[-1]
+        if self.goal_map is None:
+            landmark = self._planned(achieved_goal, desired_goal)
+        else:  # the planner plans in its source task's coordinates
+            landmark = self.goal_map.through(self._planned, achieved_goal, desired_goal)
         distance = np.linalg.norm(desired_goal - achieved_goal)
         reach = np.linalg.norm(landmark - achieved_goal) if self.switch_distance is None else self.switch_distance
         return np.array(desired_goal) if distance <= reach else landmark
+
+    def _planned(self, achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
+        """The ``horizon``-th chained landmark, in the planner's coordinates."""
+        return self.planner.plan(achieved_goal, desired_goal, horizon=self.horizon, snap=self.snap)[-1]
 
     def _guide(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         self.real_desired_goal = np.array(observation["desired_goal"])
