@@ -1,5 +1,6 @@
 """
-RL-Zoo entry point: ``python -m sb3_pilot.experiments.zoo train|enjoy|plot_train|plot_from_file|all_plots [zoo flags]``.
+RL-Zoo entry point: ``python -m sb3_pilot.experiments.zoo COMMAND [zoo flags]``, COMMAND one of ``train``, ``enjoy``,
+``record_video``, ``record_training``, ``plot_train``, ``plot_from_file``, ``all_plots``.
 
 :func:`register` adds UDPO to the zoo as ``udpo`` (``rl_zoo3.ALGOS``, plus a hyperparameter sampler for
 ``--optimize``) and registers the ``Pilot/`` tasks; :func:`main` then runs the zoo's own command, as the RL-Zoo
@@ -14,13 +15,20 @@ docs do for SBX, so every zoo flag works. Four conveniences on top of ``python -
   command line only), unless ``--eval-env-kwargs`` says otherwise;
 - ``plot_train -o FILE`` saves the figure (the zoo only calls ``plt.show()``), and ``-e Pilot/...`` finds the
   zoo's log folders (named ``Pilot-...``).
+
+``record_video`` and ``record_training`` are the zoo's scripts (``rl_zoo3.record_video``, ``rl_zoo3.record_training``)
+with UDPO and the tasks registered; ``record_training`` records each checkpoint through this entry point (the zoo's
+calls ``python -m rl_zoo3.record_video``, which knows no ``udpo``) and needs the ``ffmpeg`` command.
 """
 
 from __future__ import annotations
 
 import argparse
 import functools
+import runpy
+import shutil
 import site
+import subprocess
 import sys
 import sysconfig
 from collections.abc import Callable
@@ -36,7 +44,7 @@ from sb3_pilot.experiments.evaluation import GoalEvalCallback
 from sb3_pilot.udpo import UDPO
 
 #: Commands of ``python -m rl_zoo3.cli`` that :func:`main` runs.
-ZOO_COMMANDS = ("train", "enjoy", "plot_train", "plot_from_file", "all_plots")
+ZOO_COMMANDS = ("train", "enjoy", "record_video", "record_training", "plot_train", "plot_from_file", "all_plots")
 #: The paper's UDPO search grid (appendix, "Important Hyperparameters"): ``lambda`` and ``Delta``.
 PLANNER_COEF_GRID = (1e-3, 5e-3, 1e-2, 5e-2, 1e-1)
 INVERSE_DYNAMICS_INTERVAL_GRID = (200, 500, 1500, 2000)
@@ -147,6 +155,31 @@ def _plot_train(argv: list[str], prog: str) -> None:
         print(f"Saved {args.output}")
 
 
+def _record_training(argv: list[str], prog: str) -> None:
+    """
+    The zoo's ``record_training``, whose ``python -m rl_zoo3.record_video`` calls (one per saved model) go to this
+    entry point's ``record_video`` instead, with this Python.
+    """
+    if shutil.which("ffmpeg") is None:
+        raise SystemExit(
+            "record_training adds titles to the videos and joins them with the ffmpeg command, which is not on PATH: "
+            "install ffmpeg (e.g. apt install ffmpeg), or record one model with record_video."
+        )
+    zoo_call = subprocess.call
+
+    def call(args: list[str], *rest: Any, **kwargs: Any) -> int:
+        if list(args[:3]) == ["python", "-m", "rl_zoo3.record_video"]:
+            args = [sys.executable, "-m", "sb3_pilot.experiments.zoo", "record_video", *args[3:]]
+        return zoo_call(args, *rest, **kwargs)
+
+    sys.argv = [prog, *argv]
+    subprocess.call = call  # type: ignore[assignment]
+    try:
+        runpy.run_module("rl_zoo3.record_training", run_name="__main__")
+    finally:
+        subprocess.call = zoo_call
+
+
 def main(argv: list[str] | None = None) -> None:
     """Run ``python -m sb3_pilot.experiments.zoo COMMAND [zoo flags]`` (``argv`` defaults to ``sys.argv[1:]``)."""
     argv = sys.argv[1:] if argv is None else list(argv)
@@ -166,6 +199,11 @@ def main(argv: list[str] | None = None) -> None:
 
         sys.argv = [prog, *zoo_argv]
         enjoy()
+    elif command == "record_video":  # a script, without a function to call
+        sys.argv = [prog, *zoo_argv]
+        runpy.run_module("rl_zoo3.record_video", run_name="__main__")
+    elif command == "record_training":
+        _record_training(zoo_argv, prog)
     elif command == "plot_train":
         _plot_train(zoo_argv, prog)
     else:

@@ -1,0 +1,36 @@
+"""``python -m sb3_pilot.experiments.zoo record_video`` / ``record_training``: the zoo's videos of a UDPO agent."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from sb3_pilot.experiments import zoo
+
+
+def run_zoo(*args: str, cwd: Path) -> str:
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MUJOCO_GL": "osmesa", "PYOPENGL_PLATFORM": "osmesa"}
+    command = [sys.executable, "-m", "sb3_pilot.experiments.zoo", *args]
+    result = subprocess.run(command, cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    return result.stdout
+
+
+def test_record_video_of_udpo_on_a_pilot_task(tmp_path: Path) -> None:
+    common = ("--algo", "udpo", "--env", "Pilot/Reacher-v0", "-f", "logs")
+    small = ("-params", "learning_starts:100", "n_envs:1", "batch_size:64")
+    run_zoo("train", *common, "--num-threads", "1", "-n", "200", "--seed", "0", "--eval-freq", "-1", *small, cwd=tmp_path)
+    out = run_zoo("record_video", *common, "-n", "20", "-o", "videos", cwd=tmp_path)
+    videos = list((tmp_path / "videos").glob("final-model-udpo-Pilot-Reacher-v0-*.mp4"))
+    assert len(videos) == 1 and videos[0].stat().st_size > 1000, out
+    assert videos[0].read_bytes()[4:8] == b"ftyp"  # an MP4 file
+
+
+def test_record_training_needs_ffmpeg(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setattr(zoo.shutil, "which", lambda name: None)
+    with pytest.raises(SystemExit, match="ffmpeg command, which is not on PATH"):
+        zoo.main(["record_training", "--algo", "udpo", "--env", "Pilot/Reacher-v0", "-f", str(tmp_path)])
