@@ -189,3 +189,17 @@ def test_zoo_yaml_entry(tmp_path: Path) -> None:
     maze = gym.make(MAZE).unwrapped
     check_her_consistency(stored(buffer), lambda d: maze.compute_reward(d["next_achieved"], d["desired"], None))
     assert len(np.load(run / "evaluations.npz")["timesteps"]) == 2
+
+
+def test_yaml_entries_are_the_cpu_presets_plus_mega() -> None:
+    """hyperparams/cpu/sac_mega.yml: cpu/sac.yml's entries, same values, plus MEGA's wrapper and callback."""
+    import yaml
+
+    from sb3_pilot.experiments.zoo import hyperparams_dir
+
+    mega = yaml.safe_load((hyperparams_dir() / "cpu" / "sac_mega.yml").read_text())
+    sac = yaml.safe_load((hyperparams_dir() / "cpu" / "sac.yml").read_text())
+    for env_id, entry in mega.items():
+        assert entry.pop("vec_env_wrapper") == "sb3_pilot.baselines.MegaGoalWrapper", env_id
+        assert entry.pop("callback") == "sb3_pilot.baselines.MegaCallback", env_id
+        assert entry == sac[env_id], env_id
