@@ -191,14 +191,16 @@ def test_zoo_yaml_entry(tmp_path: Path) -> None:
     assert len(np.load(run / "evaluations.npz")["timesteps"]) == 2
 
 
-def test_yaml_entries_are_the_cpu_presets_plus_mega() -> None:
-    """hyperparams/cpu/sac_mega.yml: cpu/sac.yml's entries, same values, plus MEGA's wrapper and callback."""
+@pytest.mark.parametrize("folder", ["", "cpu/"])
+def test_yaml_entries_are_sacs_plus_mega(folder: str) -> None:
+    """hyperparams/[cpu/]sac_mega.yml: [cpu/]sac.yml's entries, same values, plus MEGA's wrapper and callback."""
     import yaml
 
     from sb3_pilot.experiments.zoo import hyperparams_dir
 
-    mega = yaml.safe_load((hyperparams_dir() / "cpu" / "sac_mega.yml").read_text())
-    sac = yaml.safe_load((hyperparams_dir() / "cpu" / "sac.yml").read_text())
+    mega = yaml.safe_load((hyperparams_dir() / f"{folder}sac_mega.yml").read_text())
+    sac = yaml.safe_load((hyperparams_dir() / f"{folder}sac.yml").read_text())
+    assert set(mega) == {"Pilot/Maze2D-v0", "Pilot/AntMaze-v0"}
     for env_id, entry in mega.items():
         assert entry.pop("vec_env_wrapper") == "sb3_pilot.baselines.MegaGoalWrapper", env_id
         assert entry.pop("callback") == "sb3_pilot.baselines.MegaCallback", env_id
