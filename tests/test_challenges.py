@@ -133,6 +133,25 @@ def test_bonus_challenges_smoke(tmp_path: Path, name: str) -> None:
     check_pngs(run_dir, {"success.png", "plan_error.png"})
 
 
+def test_maze_car_smoke(tmp_path: Path) -> None:
+    """Maze2D UDPO -> distilled planner -> HER + bonus on the car (cheap: pure numpy), its statistics and table row."""
+    from sb3_pilot.experiments.pairs import table
+
+    summary = run_challenge("maze-car", "smoke", root=tmp_path)
+    run_dir = tmp_path / "maze-car"
+    check_summary(summary, "maze-car", run_dir)
+    zoo = summary["stages"]["seed_0/pilot_disp"]["config"]["zoo"]
+    assert "displacement_cosine" in " ".join(zoo) and "Pilot/Maze2DCar-v0" in zoo
+    rows = table([run_dir], reps=200)
+    assert rows.count("\n") == 1 + 3 and "too few seeds (1)" in rows  # one seed: intervals, but no verdict
+    statistics = json.loads((run_dir / "summary.json").read_text())["statistics"]
+    assert set(statistics["comparisons"]) == {
+        "HER+PILoT (bonus, paper: goal_cosine)",
+        "HER+PILoT (bonus, displacement_cosine)",
+    }
+    check_pngs(run_dir, {"success.png", "plan_error.png", "landmarks.png"})
+
+
 def test_demo_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """The demo's code path at a tiny budget (the real demo takes minutes)."""
     demo_main(["--root", str(tmp_path), "--source-steps", "300", "--steps", "200"])

@@ -1,4 +1,4 @@
-"""The six transfer pairs: their stage graphs, both similarities of the bonus, pixel-only image agents, the demo budget."""
+"""The transfer pairs: their stage graphs, both similarities of the bonus, pixel-only image agents, the demo budget."""
 
 from __future__ import annotations
 
@@ -11,7 +11,8 @@ import yaml
 from sb3_pilot.experiments.challenges import BUDGETS, CHALLENGES, run_challenge
 from sb3_pilot.experiments.challenges.definitions import HER, IMAGE_ENCODER, PILOT_DISPLACEMENT, PILOT_PAPER
 from sb3_pilot.experiments.demo import BUDGET as DEMO_BUDGET
-from sb3_pilot.experiments.pairs import FINAL_EVAL, table, verdict
+from sb3_pilot.experiments.pairs import FINAL_EVAL, table
+from sb3_pilot.experiments.pairs import main as pairs_main
 from sb3_pilot.experiments.zoo import hyperparams_dir
 
 PAIRS = {
@@ -21,13 +22,14 @@ PAIRS = {
     "vec-to-image-reacher": ("Pilot/Reacher-v0", "Pilot/ReacherImage-v0"),
     "complex-morph": ("Pilot/PointLocomotion-v0", "Pilot/AntLocomotion-v0"),
     "zero-shot-ant-maze": ("Pilot/Maze2D-v0", "Pilot/AntMaze-v0"),
+    "maze-car": ("Pilot/Maze2D-v0", "Pilot/Maze2DCar-v0"),  # beyond the paper: a cheap few-shot pair
 }
-BONUS = ("vec-to-image", "vec-to-image-reacher", "complex-morph")
+BONUS = ("vec-to-image", "vec-to-image-reacher", "complex-morph", "maze-car")
 PIXEL_POLICY = "sb3_pilot.common.torch_layers.PixelGoalSACPolicy"
 
 
-def test_six_pairs() -> None:
-    """The paper's six pairs, each with a source, PILoT and a SAC+HER baseline on the target, at every budget."""
+def test_pairs() -> None:
+    """The paper's six pairs and the cheap maze pair, each with a source, PILoT and SAC+HER on the target, at every budget."""
     assert set(CHALLENGES) == set(PAIRS)
     for name, (source_env, target_env) in PAIRS.items():
         challenge = CHALLENGES[name]
@@ -79,21 +81,11 @@ def test_demo_budget_is_named() -> None:
     assert steps["source"] >= 8000 and steps["pilot"] == steps["her"] <= steps["source"]
 
 
-def test_verdict() -> None:
-    def result(rates: list[float]) -> dict:
-        steps = [100 * (index + 1) for index in range(len(rates))]
-        reached = next((step for step, rate in zip(steps, rates, strict=True) if rate >= 0.5), None)
-        return {"runs": [{"success_rate": rates}], "mean": {"timesteps": steps, "success_rate": rates, "steps_to_50": reached}}
-
-    her = result([0.0, 0.0, 0.2, 0.5])
-    assert verdict(result([0.0, 0.6, 1.0, 1.0]), her) == "confirmed: 0.50 success (HER's final: 0.50) at 0.50x HER's steps"
-    later = verdict(result([0.0, 0.0, 0.6, 1.0]), her)
-    assert later.startswith("not at this budget: 0.50 success (HER's final: 0.50) at 0.75x")
-    assert verdict(result([0.0, 0.0, 0.0, 0.1]), her).startswith("refuted")
-    assert verdict(result([0.0] * 4), result([0.0] * 4)) == "not at this budget (neither reached 50% success)"
-    chance = result([0.0, 0.2, 0.4, 0.1])  # e.g. Push agents that never move the object
-    assert verdict(chance, chance) == "not at this budget (neither reached 50% success)"
-    assert verdict(result([0.0, 0.5, 1.0, 1.0]), result([0.0] * 4)).startswith("confirmed")
+def test_pairs_cli_bad_input(capsys: pytest.CaptureFixture[str]) -> None:
+    for argv in (["--reps", "0"], ["--episodes", "0"]):
+        with pytest.raises(SystemExit):
+            pairs_main(argv)
+        assert "must be at least 1" in capsys.readouterr().err
 
 
 @pytest.mark.slow
@@ -109,7 +101,7 @@ def test_new_pairs_smoke(tmp_path: Path, name: str) -> None:
     if name == "vec-to-image-reacher":
         args = (run_dir / "models/seed_0/her/sac/Pilot-ReacherImage-v0_1/Pilot-ReacherImage-v0/config.yml").read_text()
         assert PIXEL_POLICY in args and f"encoder: {IMAGE_ENCODER}" in args
-    rows = table([run_dir], episodes=1)
+    rows = table([run_dir], episodes=1, reps=200)
     assert rows.count("\n") == 1 + len(methods)
     final = json.loads((run_dir / FINAL_EVAL).read_text())
     assert set(final) == methods and all(entry["seed_0"]["distance"] >= 0 for entry in final.values())

@@ -1,9 +1,12 @@
 """
-The results table of the transfer pairs: one row per challenge run (``<root>/<challenge>/summary.json``), per compared
-method the steps to 50% and 90% success, the final success and the final distance to the goal (mean [min, max] over
-seeds), and a verdict on the paper's claim ("HER+PILoT learns the target faster than HER").
+The results table of the transfer pairs: one row per challenge run (``<root>/<challenge>/summary.json``) and compared
+method, with the ``rliable`` statistics of :mod:`sb3_pilot.experiments.statistics` (interquartile mean over seeds and
+stratified-bootstrap 95% intervals of the area under the success curve, the steps to 50% and 90% success and the
+final success; the probability of improvement over SAC+HER), the final distance to the goal (mean [min, max] over
+seeds) and a verdict on the paper's claim ("HER+PILoT learns the target faster than HER"). The statistics are also
+written into each ``summary.json`` (``statistics``).
 
-    python -m sb3_pilot.experiments.pairs [ROOT=zoo_runs] [CHALLENGE ...] [--episodes 10]
+    python -m sb3_pilot.experiments.pairs [ROOT=zoo_runs] [CHALLENGE ...] [--episodes 10] [--reps 2000]
 
 Final distance: the mean ``||achieved_goal - desired_goal||`` at the end of the last evaluation's episodes, as
 ``summary.json`` records it (``final_distance``, from ``GoalEvalCallback``'s ``evaluations.npz`` or a guidance
@@ -11,14 +14,9 @@ stage's episodes); for summaries without it, the zoo's ``evaluations.npz``; runs
 final model (``models/``) played again for ``episodes`` deterministic episodes (``play_episodes``). Either goes to
 ``<root>/<challenge>/final_eval.json`` (reused if present, so the table can be rebuilt without the models).
 
-Verdict, per PILoT method against SAC+HER (``level`` = HER's final mean success, at least 0.1; ``ratio`` = the first
-evaluated step where PILoT's mean success reaches ``level``, over HER's last step):
-
-- ``confirmed``: ``ratio <= 0.5`` (the issue's goal: HER's final success in at most half HER's steps);
-- ``not at this budget``: neither method's mean success reached 0.5 (below that, success can be chance: on Push a
-  goal drawn at the object's start counts without moving it), or PILoT reaches ``level`` but later than half HER's
-  steps, or never but within 0.2 of HER's final success;
-- ``refuted at this budget``: PILoT's final success is below HER's by more than 0.2.
+Verdict, per PILoT method against SAC+HER, on the gain ``IQM(area_PILoT) - IQM(area_HER)`` and its 95% interval:
+``confirmed`` when the interval lies above 0, ``a hint`` when only the estimate does, ``no gain shown`` otherwise,
+``worse than SAC+HER`` when the interval lies below 0, and no verdict under 3 seeds per method.
 """
 
 from __future__ import annotations
@@ -34,6 +32,7 @@ import numpy as np
 from sb3_pilot.experiments.challenges.definitions import CHALLENGES, HER
 from sb3_pilot.experiments.challenges.stages import load_zoo_model, play_episodes, zoo_run_dir
 from sb3_pilot.experiments.evaluation import load_final_distances
+from sb3_pilot.experiments.statistics import REPS, summary_statistics
 from sb3_pilot.experiments.zoo import register
 
 FINAL_EVAL = "final_eval.json"
@@ -86,57 +85,69 @@ def evaluate_final(run_dir: Path, episodes: int = 10) -> dict[str, Any]:
     return results
 
 
-def verdict(pilot: dict[str, Any], her: dict[str, Any]) -> str:
-    """The verdict of one PILoT method against SAC+HER, from their ``summary.json`` entries (see the module doc)."""
-    pilot_final = float(np.mean([run["success_rate"][-1] for run in pilot["runs"]]))
-    her_final = float(np.mean([run["success_rate"][-1] for run in her["runs"]]))
-    if pilot["mean"]["steps_to_50"] is None and her["mean"]["steps_to_50"] is None:
-        # on Push, a goal drawn at the object's start is a success without moving: 0.1-0.4 is no learning
-        return "not at this budget (neither reached 50% success)"
-    level = max(her_final, 0.1)
-    her_steps = her["mean"]["timesteps"][-1]
-    reached = next(
-        (step for step, rate in zip(pilot["mean"]["timesteps"], pilot["mean"]["success_rate"], strict=True) if rate >= level),
-        None,
-    )
-    if reached is not None:
-        ratio = reached / her_steps
-        reaches = f"{level:.2f} success (HER's final: {her_final:.2f}) at {ratio:.2f}x HER's steps"
-        if ratio <= 0.5:
-            return f"confirmed: {reaches}"
-        return f"not at this budget: {reaches} (goal <= 0.5x)"
-    if her_final - pilot_final > 0.2:
-        return f"refuted at this budget: final success {pilot_final:.2f} vs HER's {her_final:.2f}"
-    return f"not at this budget: final success {pilot_final:.2f} vs HER's {her_final:.2f}, never reaches it"
+def _estimate(entry: dict[str, Any], digits: int = 2) -> str:
+    """``value [low, high]`` of a statistic."""
+    low, high = entry["ci"]
+    return f"{entry['value']:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"
+
+
+def _steps(entry: dict[str, Any], seeds: int) -> str:
+    """IQM of the steps to a success rate and how many seeds reached it (the others counted at ``censored_at``)."""
+    if entry["reached"] == 0:
+        return f"never (0/{seeds})"
+    low, high = entry["ci"]
+    return f"{entry['value']:.0f} [{low:.0f}, {high:.0f}] ({entry['reached']}/{seeds})"
 
 
 def _spread(values: list[float], digits: int = 2) -> str:
     return f"{np.mean(values):.{digits}f} [{min(values):.{digits}f}, {max(values):.{digits}f}]" if values else "-"
 
 
-def table(run_dirs: list[Path], episodes: int = 10) -> str:
-    """The markdown results table of the given challenge runs (one block of rows per pair)."""
+def add_statistics(run_dir: Path, reps: int = REPS) -> dict[str, Any]:
+    """
+    Compute the ``rliable`` statistics of a challenge run (:func:`~sb3_pilot.experiments.statistics.summary_statistics`,
+    SAC+HER the baseline) and write them into its ``summary.json`` under ``statistics``.
+
+    :param run_dir: ``<root>/<challenge>``
+    :param reps: bootstrap replications
+    :return: the summary with its statistics
+    """
+    path = run_dir / "summary.json"
+    summary = json.loads(path.read_text())
+    summary["statistics"] = summary_statistics(summary, HER, reps=reps)
+    path.write_text(json.dumps(summary, indent=1))
+    return summary
+
+
+def table(run_dirs: list[Path], episodes: int = 10, reps: int = REPS) -> str:
+    """
+    The markdown results table of the given challenge runs (one block of rows per pair); their statistics are written
+    into their ``summary.json`` (:func:`add_statistics`).
+    """
     lines = [
-        "| pair (budget, seeds) | method | env steps | steps to 50% | steps to 90% | final success | final distance "
-        "| verdict |",
-        "|---|---|---|---|---|---|---|---|",
+        "| pair (budget, seeds) | method | env steps | area under the success curve, IQM [95% CI] | steps to 50%, IQM "
+        "[95% CI] (seeds reaching it) | steps to 90% | final success, IQM [95% CI] | final distance, mean [min, max] "
+        "| P(improvement over SAC+HER) [95% CI] | verdict |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for run_dir in run_dirs:
-        summary = json.loads((run_dir / "summary.json").read_text())
+        summary = add_statistics(run_dir, reps)
         final = evaluate_final(run_dir, episodes)
         pair = f"{summary['challenge']} ({summary['budget']}, {len(summary['seeds'])} seed{'s' * (len(summary['seeds']) > 1)})"
-        her = summary["methods"].get(HER)
+        statistics = summary["statistics"]
         for method, result in summary["methods"].items():
-            mean = result["mean"]
-            finals = [run["success_rate"][-1] for run in result["runs"]]
+            stats = statistics["methods"][method]
             if all("final_distance" in run for run in result["runs"]):  # recorded in the summary: its last evaluation
                 distances = [run["final_distance"][-1] for run in result["runs"]]
             else:
                 distances = [entry["distance"] for entry in final.get(method, {}).values()]
-            judged = verdict(result, her) if her is not None and method != HER else ""
+            comparison = statistics["comparisons"].get(method)
+            improvement = _estimate(comparison["probability_of_improvement"]) if comparison else ""
             lines.append(
-                f"| {pair} | {method} | {mean['timesteps'][-1]} | {mean['steps_to_50'] or '-'} | "
-                f"{mean['steps_to_90'] or '-'} | {_spread(finals)} | {_spread(distances, 3)} | {judged} |"
+                f"| {pair} | {method} | {result['mean']['timesteps'][-1]} | {_estimate(stats['area'])} | "
+                f"{_steps(stats['steps_to_50'], stats['seeds'])} | {_steps(stats['steps_to_90'], stats['seeds'])} | "
+                f"{_estimate(stats['final_success'])} | {_spread(distances, 3)} | {improvement} | "
+                f"{comparison['verdict'] if comparison else ''} |"
             )
             pair = ""
     return "\n".join(lines)
@@ -148,10 +159,13 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("root", nargs="?", default="zoo_runs")
     parser.add_argument("challenges", nargs="*", help="challenge folders under ROOT (default: every one with a summary)")
     parser.add_argument("--episodes", type=int, default=10, help="episodes per final model for the final distance")
+    parser.add_argument("--reps", type=int, default=REPS, help="bootstrap replications of the intervals")
     args = parser.parse_args(argv)
+    if args.episodes < 1 or args.reps < 1:
+        parser.error(f"--episodes and --reps must be at least 1, got {args.episodes} and {args.reps}")
     root = Path(args.root)
     names = args.challenges or [name for name in CHALLENGES if (root / name / "summary.json").exists()]
-    print(table([root / name for name in names], args.episodes))
+    print(table([root / name for name in names], args.episodes, args.reps))
 
 
 if __name__ == "__main__":

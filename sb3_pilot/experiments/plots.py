@@ -3,9 +3,10 @@ Pictures of a challenge run: ``python -m sb3_pilot.experiments.plots zoo_runs/<c
 
 Reads ``summary.json`` (written by ``python -m sb3_pilot.experiments.challenges``) and writes, next to it:
 
-- ``success.png``: success rate vs env steps on the target task, mean and min-max spread over seeds, per method
-  (a zero-shot method, evaluated after 0 target steps, is a horizontal line), and beside it the final distance to
-  the goal of the same evaluations, where they recorded it;
+- ``success.png``: success rate vs env steps on the target task, per method the interquartile mean over seeds and its
+  stratified-bootstrap 95% interval at each evaluation (``rliable``), the legend giving the IQM of the area under
+  the success curve with its interval (a zero-shot method, evaluated after 0 target steps, is a horizontal line),
+  and beside it the final distance to the goal of the same evaluations (mean, min-max band), where they recorded it;
 - ``plan_error.png``: UDPO's ``rollout/plan_error`` (mean squared error between the planned and the reached next
   state, the paper's "pred-real MSE") over training, from each UDPO stage's ``progress.csv``;
 - ``landmarks.png`` (challenges with a planner distilled on ``Pilot/Maze2D-v0``): the paper's Fig. 1 analogue,
@@ -34,15 +35,17 @@ from matplotlib.patches import Circle, Rectangle
 from sb3_pilot.distill import GoalPlanner
 from sb3_pilot.envs import UMAZE_MAP, UMAZE_SCALING, register_envs, umaze_cell_to_xy
 from sb3_pilot.envs.maze import MAZE_DISTANCE_THRESHOLD
+from sb3_pilot.experiments.statistics import method_statistics, pointwise_iqm
 
 MAZE_SOURCE = "Pilot/Maze2D-v0"
 
 
 def plot_success(summary: dict[str, Any], path: Path) -> None:
     """
-    Success rate vs env steps on the target task: per method, the mean over seeds and the min-max band; beside it,
-    where the evaluations recorded it, the final distance to the goal (mean over the evaluation's episodes) the
-    same way.
+    Success rate vs env steps on the target task: per method, the IQM over seeds and its 95% interval at each
+    evaluation, labelled with the IQM [95% interval] of the area under the success curve; beside it, where the
+    evaluations recorded it, the final distance to the goal (mean over the evaluation's episodes), mean and min-max
+    band over seeds.
 
     :param summary: a challenge's ``summary.json``
     :param path: the PNG to write
@@ -61,8 +64,14 @@ def plot_success(summary: dict[str, Any], path: Path) -> None:
             if n_points == 1:  # zero-shot: evaluated after 0 target steps
                 steps = np.array([0, last_step])
                 values = np.repeat(values, 2, axis=1)
-            (line,) = ax.plot(steps, values.mean(axis=0), label=method, linestyle="--" if n_points == 1 else "-")
-            ax.fill_between(steps, values.min(axis=0), values.max(axis=0), color=line.get_color(), alpha=0.2)
+            if key == "success_rate":
+                center, (low, high) = pointwise_iqm(values)
+                area = method_statistics(result["runs"])["area"]
+                label = f"{method}\narea IQM {area['value']:.2f} [{area['ci'][0]:.2f}, {area['ci'][1]:.2f}]"
+            else:
+                center, low, high, label = values.mean(axis=0), values.min(axis=0), values.max(axis=0), method
+            (line,) = ax.plot(steps, center, label=label, linestyle="--" if n_points == 1 else "-")
+            ax.fill_between(steps, low, high, color=line.get_color(), alpha=0.2)
         ax.set_xlabel(f"env steps on {summary['target_env']}")
         ax.grid(alpha=0.3)
     axes[0, 0].set(ylabel="evaluation success rate", ylim=(-0.03, 1.03))
@@ -75,7 +84,7 @@ def plot_success(summary: dict[str, Any], path: Path) -> None:
         ),
         fontsize=9,
     )
-    axes[0, 0].legend(fontsize=8, title="mean, band: min-max over seeds", title_fontsize=7)
+    axes[0, 0].legend(fontsize=7, title="IQM over seeds, band: its 95% bootstrap interval", title_fontsize=7)
     _save(fig, path)
 
 
@@ -105,7 +114,7 @@ def plot_plan_error(summary: dict[str, Any], run_dir: Path, path: Path) -> bool:
     """
     curves: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
     for key, stage in summary["stages"].items():
-        if stage["progress_csv"] is None:
+        if stage["progress_csv"] is None or not (run_dir / stage["progress_csv"]).exists():  # models/ not kept
             continue
         steps, errors = read_progress_csv(run_dir / stage["progress_csv"], "rollout/plan_error")
         if len(steps) > 0:

@@ -98,6 +98,11 @@ VEC_TO_IMAGE_FAST: dict[str, dict[str, Any]] = {
     "sac": {"batch_size": 64, "policy_kwargs": {"features_extractor_kwargs": {"encoder": IMAGE_ENCODER}}},
 }
 
+#: Maze-Car's target agents at the smoke and cpu budgets, every method alike: 64x64 networks (RL-Zoo's FetchReach
+#: size) instead of SB3's 256x256, so that 10 seeds x 3 methods fit a session on a shared 2-core machine (a 256x256
+#: SAC ran at 27-90 env steps/s on one core there); the source UDPO keeps its YAML's.
+MAZE_CAR_FAST: dict[str, dict[str, Any]] = {"sac": {"policy_kwargs": {"net_arch": [64, 64]}}}
+
 
 @dataclass(frozen=True)
 class Challenge:
@@ -279,6 +284,7 @@ CHALLENGES: dict[str, Challenge] = {
                 # (zoo_runs/maze-car/README.md); the source's 12k steps: UDPO reached 1.0 on Maze2D at 12k
                 "cpu": {"source": 12_000, "pilot": 20_000, "pilot_disp": 20_000, "her": 20_000},
             },
+            fast_hyperparams=MAZE_CAR_FAST,
         ),
         Challenge(
             "zero-shot-ant-maze",

@@ -1,0 +1,221 @@
+"""
+Statistics of a challenge's learning curves that can tell a gain from seed noise, with ``rliable`` (Agarwal et al.,
+"Deep RL at the Edge of the Statistical Precipice", 2021): per method, the interquartile mean (IQM) over seeds of
+
+- ``area``: the area under the success curve, the mean of the evaluated success rates (the evaluations are evenly
+  spaced, so this is the area under the curve over the budget, in [0, 1]);
+- ``final_success``: the success rate of the last evaluation;
+- ``steps_to_50`` / ``steps_to_90``: the first evaluated step whose success rate reaches 50% / 90%; a seed that
+  never does counts as one evaluation interval past the budget (``censored_at``), and ``reached`` says how many did;
+
+each with its stratified-bootstrap 95% interval. Each PILoT method is compared with SAC+HER on the area: the
+probability of improvement ``P(area_PILoT > area_HER)`` and the gain ``IQM(area_PILoT) - IQM(area_HER)``, with their
+bootstrap intervals (seeds of the two methods resampled independently). The verdict is "confirmed" only when the
+interval of the gain excludes 0 (lies above it).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from rliable import library, metrics
+
+#: Per-seed scores of a method, IQM-aggregated.
+METRICS = ("area", "final_success", "steps_to_50", "steps_to_90")
+#: Coverage of the intervals.
+CONFIDENCE = 0.95
+#: Bootstrap replications (rliable's default is 50000; its bootstrap runs each in Python: 2000 keep a summary's
+#: statistics within seconds, and the 2.5% / 97.5% quantiles of 2000 draws within about 0.01 of success)
+REPS = 2000
+#: Fewer seeds than this per method: no verdict (a bootstrap over one or two seeds has no width to speak of).
+MIN_SEEDS = 3
+
+
+def run_scores(timesteps: Sequence[int], success_rate: Sequence[float]) -> dict[str, float]:
+    """
+    The scores of one seed's learning curve (see the module doc).
+
+    :param timesteps: the evaluated env steps (increasing)
+    :param success_rate: the success rate of each evaluation, in [0, 1]
+    :return: ``area``, ``final_success``, ``steps_to_50``, ``steps_to_90`` (censored at ``censored_at``) and
+        ``censored_at``
+    """
+    if len(timesteps) == 0 or len(timesteps) != len(success_rate):
+        raise ValueError(
+            f"A learning curve needs as many (>= 1) steps as success rates, got {len(timesteps)} and {len(success_rate)}."
+        )
+    rates = np.asarray(success_rate, dtype=np.float64)
+    if np.any((rates < 0) | (rates > 1)):
+        raise ValueError(f"Success rates must lie in [0, 1], got {rates.tolist()}.")
+    steps = np.asarray(timesteps, dtype=np.float64)
+    censored_at = steps[-1] + (steps[-1] - steps[-2] if len(steps) > 1 else 1.0)
+    scores = {"area": float(rates.mean()), "final_success": float(rates[-1]), "censored_at": float(censored_at)}
+    for threshold in (0.5, 0.9):
+        reached = np.flatnonzero(rates >= threshold)
+        scores[f"steps_to_{round(100 * threshold)}"] = float(steps[reached[0]]) if len(reached) else float(censored_at)
+    return scores
+
+
+def _estimates(data: Any, func: Callable[..., np.ndarray], seed: int, reps: int) -> tuple[np.ndarray, np.ndarray]:
+    """
+    rliable's ``get_interval_estimates`` (percentile method) on one entry, reproducible.
+
+    :param data: scores of shape (seeds, columns), or a list of them (resampled independently)
+    :param func: the statistics of the scores, a 1D array
+    :param seed: the bootstrap's random seed
+    :param reps: bootstrap replications
+    :return: the point estimates and their intervals (2, ...)
+    """
+    if reps < 1:
+        raise ValueError(f"reps must be a positive number of bootstrap replications, got {reps!r}.")
+    with warnings.catch_warnings():  # rliable passes arch a RandomState, which arch 7 deprecates
+        warnings.simplefilter("ignore", FutureWarning)
+        points, intervals = library.get_interval_estimates(
+            {"x": data}, func, reps=reps, confidence_interval_size=CONFIDENCE, random_state=np.random.RandomState(seed)
+        )
+    return points["x"], intervals["x"]
+
+
+def _interval(scores: Any, func: Callable[..., float], seed: int, reps: int) -> dict[str, Any]:
+    """
+    Point estimate and stratified-bootstrap interval of a scalar statistic of per-seed scores.
+
+    :param scores: one array of per-seed scores, or a list of two (resampled independently)
+    :param func: the statistic of the scores
+    :param seed: the bootstrap's random seed
+    :param reps: bootstrap replications
+    """
+    if isinstance(scores, list):
+        data: Any = [np.asarray(array, dtype=np.float64)[:, None] for array in scores]
+    else:
+        data = np.asarray(scores, dtype=np.float64)[:, None]
+    points, intervals = _estimates(data, lambda *arrays: np.array([func(*arrays)]), seed, reps)
+    return {"value": float(points[0]), "ci": [float(intervals[0, 0]), float(intervals[1, 0])]}
+
+
+def iqm(scores: np.ndarray) -> float:
+    """Interquartile mean of per-seed scores (rliable's ``aggregate_iqm``)."""
+    return float(metrics.aggregate_iqm(scores))
+
+
+def method_statistics(runs: Sequence[dict[str, Any]], seed: int = 0, reps: int = REPS) -> dict[str, Any]:
+    """
+    IQM over seeds and its interval for each of :data:`METRICS`.
+
+    :param runs: the method's runs, each with ``timesteps`` and ``success_rate`` (``summary.json``'s ``runs``)
+    :param seed: the bootstrap's random seed
+    :param reps: bootstrap replications
+    :return: ``{"seeds": n, metric: {"value", "ci"}, ...}``; the steps' entries also hold ``reached`` and
+        ``censored_at``
+    """
+    if not runs:
+        raise ValueError("No runs to aggregate.")
+    per_run = [run_scores(run["timesteps"], run["success_rate"]) for run in runs]
+    result: dict[str, Any] = {"seeds": len(runs)}
+    for metric in METRICS:
+        values = np.array([scores[metric] for scores in per_run])
+        result[metric] = _interval(values, iqm, seed, reps)
+        if metric.startswith("steps_to"):
+            censored_at = max(scores["censored_at"] for scores in per_run)
+            result[metric].update(reached=int(np.sum(values < censored_at)), censored_at=censored_at)
+    return result
+
+
+def verdict(gain: dict[str, Any], seeds: int) -> str:
+    """
+    The verdict on "the PILoT method learns the target faster than SAC+HER" from the gain in area.
+
+    :param gain: ``{"value", "ci"}`` of ``IQM(area_PILoT) - IQM(area_HER)``
+    :param seeds: the fewest seeds of the two methods
+    """
+    value, (low, high) = gain["value"], gain["ci"]
+    interval = f"area gain {value:+.2f} [{low:+.2f}, {high:+.2f}]"
+    if seeds < MIN_SEEDS:
+        return f"too few seeds ({seeds}) for a verdict: {interval}"
+    if low > 0:
+        return f"confirmed: {interval}"
+    if high < 0:
+        return f"worse than SAC+HER: {interval}"
+    if value > 0:
+        return f"a hint: {interval} includes 0"
+    return f"no gain shown: {interval}"
+
+
+def compare(
+    pilot_runs: Sequence[dict[str, Any]], her_runs: Sequence[dict[str, Any]], seed: int = 0, reps: int = REPS
+) -> dict[str, Any]:
+    """
+    A PILoT method against SAC+HER on the area under the success curve.
+
+    :param pilot_runs: the PILoT method's runs
+    :param her_runs: SAC+HER's runs
+    :param seed: the bootstrap's random seed
+    :param reps: bootstrap replications
+    :return: ``probability_of_improvement`` and ``area_gain`` (``{"value", "ci"}``), ``steps_to_90_ratio`` (IQM of
+        PILoT's steps to 90% over HER's, censored seeds included; None when neither reached it) and ``verdict``
+    """
+    pilot_scores, her_scores = (
+        [run_scores(run["timesteps"], run["success_rate"]) for run in runs] for runs in (pilot_runs, her_runs)
+    )
+    pilot, her = (np.array([scores["area"] for scores in side]) for side in (pilot_scores, her_scores))
+
+    def improvement(x: np.ndarray, y: np.ndarray) -> float:
+        return float(metrics.probability_of_improvement(x, y))
+
+    def gain(x: np.ndarray, y: np.ndarray) -> float:
+        return iqm(x) - iqm(y)
+
+    area_gain = _interval([pilot, her], gain, seed, reps)
+    reached = any(scores["steps_to_90"] < scores["censored_at"] for scores in (*pilot_scores, *her_scores))
+    pilot_steps, her_steps = (np.array([scores["steps_to_90"] for scores in side]) for side in (pilot_scores, her_scores))
+    return {
+        "probability_of_improvement": _interval([pilot, her], improvement, seed, reps),
+        "area_gain": area_gain,
+        "steps_to_90_ratio": iqm(pilot_steps) / iqm(her_steps) if reached else None,
+        "verdict": verdict(area_gain, min(len(pilot), len(her))),
+    }
+
+
+def summary_statistics(summary: dict[str, Any], baseline: str, seed: int = 0, reps: int = REPS) -> dict[str, Any]:
+    """
+    The statistics of a challenge's ``summary.json``: every method's, and every other method compared with
+    ``baseline`` (SAC+HER) when the challenge has it.
+
+    :param summary: the summary
+    :param baseline: the method the others are compared with
+    :param seed: the bootstrap's random seed
+    :param reps: bootstrap replications
+    :return: ``{"confidence", "reps", "methods": {method: ...}, "comparisons": {method: ...}}``
+    """
+    methods = summary["methods"]
+    comparisons = {
+        method: compare(result["runs"], methods[baseline]["runs"], seed, reps)
+        for method, result in methods.items()
+        if baseline in methods and method != baseline
+    }
+    return {
+        "confidence": CONFIDENCE,
+        "reps": reps,
+        "bootstrap_seed": seed,
+        "methods": {method: method_statistics(result["runs"], seed, reps) for method, result in methods.items()},
+        "comparisons": comparisons,
+    }
+
+
+def pointwise_iqm(curves: np.ndarray, seed: int = 0, reps: int = REPS) -> tuple[np.ndarray, np.ndarray]:
+    """
+    IQM over seeds of the success rate at each evaluation, and its stratified-bootstrap interval (for the plots).
+
+    :param curves: success rates, shape (seeds, evaluations)
+    :param seed: the bootstrap's random seed
+    :param reps: bootstrap replications
+    :return: the IQM (evaluations,) and the interval (2, evaluations)
+    """
+
+    def column_iqms(scores: np.ndarray) -> np.ndarray:
+        return np.array([iqm(scores[:, column]) for column in range(scores.shape[1])])
+
+    return _estimates(np.asarray(curves, dtype=np.float64), column_iqms, seed, reps)

@@ -1,0 +1,69 @@
+"""The rliable statistics of the challenges' learning curves, on synthetic curves whose answer is known."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sb3_pilot.experiments.statistics import compare, method_statistics, pointwise_iqm, run_scores, verdict
+
+STEPS = list(range(2000, 20_001, 2000))
+REPS = 500  # enough for the clear cases here, and fast
+
+
+def ramps(starts: np.ndarray) -> list[dict]:
+    """Runs whose success rises linearly from 0 at ``start`` to 1 over 6000 steps."""
+    return [{"timesteps": STEPS, "success_rate": np.clip((np.array(STEPS) - start) / 6000, 0, 1).tolist()} for start in starts]
+
+
+def test_run_scores() -> None:
+    scores = run_scores([100, 200, 300, 400], [0.0, 0.5, 0.8, 1.0])
+    assert scores == {
+        "area": pytest.approx(0.575),
+        "final_success": 1.0,
+        "censored_at": 500.0,
+        "steps_to_50": 200.0,
+        "steps_to_90": 400.0,
+    }
+    assert run_scores([0], [0.3])["steps_to_50"] == run_scores([0], [0.3])["censored_at"] == 1.0  # never reached
+    with pytest.raises(ValueError, match="as many"):
+        run_scores([100, 200], [0.5])
+    with pytest.raises(ValueError, match=r"\[0, 1\]"):
+        run_scores([100], [1.5])
+
+
+def test_a_clear_gain_is_confirmed_and_no_gain_is_not() -> None:
+    rng = np.random.default_rng(0)
+    her = ramps(rng.uniform(4000, 16_000, size=10))
+    pilot = ramps(rng.uniform(0, 4000, size=10))
+    result = compare(pilot, her, reps=REPS)
+    assert result["verdict"].startswith("confirmed")
+    assert result["area_gain"]["ci"][0] > 0 and result["probability_of_improvement"]["value"] > 0.9
+    assert result["steps_to_90_ratio"] < 0.6
+    assert compare(her, pilot, reps=REPS)["verdict"].startswith("worse")
+    same = compare(her, her, reps=REPS)  # identical curves: an interval around 0, never "confirmed"
+    assert same["area_gain"]["value"] == 0 and same["probability_of_improvement"]["value"] == 0.5
+    assert same["verdict"].startswith("no gain shown")
+    # the same gain on two seeds: no verdict at all
+    assert compare(pilot[:2], her[:2], reps=REPS)["verdict"].startswith("too few seeds (2)")
+
+
+def test_verdict_wording() -> None:
+    assert verdict({"value": 0.1, "ci": [-0.05, 0.3]}, 10) == "a hint: area gain +0.10 [-0.05, +0.30] includes 0"
+    assert verdict({"value": -0.1, "ci": [-0.3, 0.05]}, 10).startswith("no gain shown")
+
+
+def test_method_statistics_and_pointwise_iqm() -> None:
+    runs = ramps(np.array([0, 0, 0, 30_000]))  # three seeds at 90% by 8000, one never learns
+    stats = method_statistics(runs, reps=REPS)
+    assert stats["seeds"] == 4 and stats["steps_to_90"]["reached"] == 3 and stats["steps_to_90"]["censored_at"] == 22_000
+    assert stats["final_success"]["value"] == 1.0  # the IQM trims the seed that never learned
+    low, high = stats["area"]["ci"]
+    assert low <= stats["area"]["value"] <= high
+    center, interval = pointwise_iqm(np.array([run["success_rate"] for run in runs]), reps=REPS)
+    assert center.shape == (len(STEPS),) and interval.shape == (2, len(STEPS))
+    assert np.all(interval[0] <= center + 1e-9) and np.all(center <= interval[1] + 1e-9)
+    with pytest.raises(ValueError, match="reps"):
+        method_statistics(runs, reps=0)
+    with pytest.raises(ValueError, match="No runs"):
+        method_statistics([])
