@@ -37,5 +37,4 @@ autodoc_default_options = {"members": True, "show-inheritance": True}
 intersphinx_mapping: dict[str, tuple[str, None]] = {}
 
 html_theme = "sphinx_rtd_theme"
-html_static_path = ["_static"]
 html_title = f"sb3-pilot {release}"
