@@ -13,14 +13,21 @@ from gymnasium import spaces
 from scipy.stats import multivariate_normal
 from stable_baselines3 import PPO, SAC, HerReplayBuffer
 from stable_baselines3.common.callbacks import EvalCallback
-from stable_baselines3.common.vec_env import DummyVecEnv, VecEnvWrapper, VecNormalize
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnvWrapper, VecFrameStack, VecNormalize
 
 from sb3_pilot import UDPO, GoalPlanner, PilotBonusWrapper, PilotHerReplayBuffer
 from sb3_pilot.baselines import KernelDensity, MegaCallback, MegaGoalWrapper
 from tests.goal_envs import PointGoalEnv
 
 MAZE = "Pilot/Maze2D-v0"
-FAST = {"learning_starts": 100, "batch_size": 32, "policy_kwargs": {"net_arch": [32, 32]}, "seed": 0, "device": "cpu"}
+FAST = {
+    "buffer_size": 2000,
+    "learning_starts": 100,
+    "batch_size": 32,
+    "policy_kwargs": {"net_arch": [32, 32]},
+    "seed": 0,
+    "device": "cpu",
+}
 
 
 def maze_venv(wrapper=None) -> DummyVecEnv:
@@ -167,6 +174,11 @@ def test_bad_input_is_refused_before_training() -> None:
     with pytest.raises(ValueError, match="wrap it in VecNormalize"):
         model = SAC(
             "MultiInputPolicy", MegaGoalWrapper(VecNormalize(maze_venv())), replay_buffer_class=HerReplayBuffer, **FAST
+        )
+        model.learn(10, callback=MegaCallback())
+    with pytest.raises(ValueError, match="VecFrameStack"):
+        model = SAC(
+            "MultiInputPolicy", VecFrameStack(MegaGoalWrapper(maze_venv()), 2), replay_buffer_class=HerReplayBuffer, **FAST
         )
         model.learn(10, callback=MegaCallback())
     with pytest.raises(TypeError, match="replay buffer"):

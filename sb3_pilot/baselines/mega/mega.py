@@ -8,7 +8,7 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.buffers import DictReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.vec_env import VecNormalize, unwrap_vec_wrapper
+from stable_baselines3.common.vec_env import VecEnvWrapper, VecFrameStack, VecNormalize, VecTransposeImage, unwrap_vec_wrapper
 
 from sb3_pilot.baselines.mega.density import KernelDensity
 from sb3_pilot.baselines.mega.goal_wrapper import MegaGoalWrapper
@@ -71,7 +71,8 @@ class MegaCallback(BaseCallback):
         self.max_episode_steps = max_episode_steps
         self.successes: deque[bool] = deque(maxlen=cutoff_window)
         self.goal_wrapper: MegaGoalWrapper | None = None
-        self.vec_normalize: VecNormalize | None = None
+        # the observation-changing wrappers above MegaGoalWrapper, outermost first: what the policy sees of its goals
+        self.outer_wrappers: list[VecNormalize | VecTransposeImage] = []
         self.lowest_cutoff = self.min_cutoff = self.cutoff = initial_cutoff
 
     def _init_callback(self) -> None:
@@ -81,9 +82,17 @@ class MegaCallback(BaseCallback):
                 "MegaCallback needs the training env wrapped in sb3_pilot.baselines.MegaGoalWrapper "
                 "(RL Zoo: vec_env_wrapper: sb3_pilot.baselines.MegaGoalWrapper)."
             )
-        self.vec_normalize = self.model.get_vec_normalize_env()
-        if self.vec_normalize is not None and unwrap_vec_wrapper(self.goal_wrapper, VecNormalize) is not None:
+        if unwrap_vec_wrapper(self.goal_wrapper, VecNormalize) is not None:
             raise ValueError("MegaGoalWrapper works on raw goals: wrap it in VecNormalize, not the other way round.")
+        self.outer_wrappers = []
+        env = self.training_env
+        while env is not self.goal_wrapper:
+            assert isinstance(env, VecEnvWrapper)
+            if isinstance(env, VecFrameStack):
+                raise ValueError("MegaCallback cannot value goals under VecFrameStack: the stacked history is unknown.")
+            if isinstance(env, (VecNormalize, VecTransposeImage)):
+                self.outer_wrappers.append(env)
+            env = env.venv
         buffer = getattr(self.model, "replay_buffer", None)
         if not isinstance(buffer, DictReplayBuffer) or "achieved_goal" not in buffer.next_observations:
             raise TypeError(
@@ -128,11 +137,15 @@ class MegaCallback(BaseCallback):
 
     def values(self, observations: dict[str, np.ndarray]) -> np.ndarray:
         """
-        :param observations: raw goal observations (a batch), ``desired_goal`` holding the goals to value
+        :param observations: raw goal observations (a batch, as :class:`MegaGoalWrapper` sees them), ``desired_goal``
+            holding the goals to value; ``VecNormalize`` and ``VecTransposeImage`` above the wrapper are applied
         :return: ``min_j Q_j(s, g, pi(s, g))`` at the policy's deterministic action, shape (batch,)
         """
-        if self.vec_normalize is not None:
-            observations = self.vec_normalize.normalize_obs(observations)  # type: ignore[assignment]
+        for wrapper in reversed(self.outer_wrappers):  # as the training env's wrappers give them to the policy
+            if isinstance(wrapper, VecNormalize):
+                observations = wrapper.normalize_obs(observations)  # type: ignore[assignment]
+            else:
+                observations = wrapper.transpose_observations(observations)  # type: ignore[assignment]
         policy = self.model.policy
         obs_tensor, _ = policy.obs_to_tensor(observations)
         with th.no_grad():
