@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from sb3_pilot.experiments import zoo
@@ -34,3 +35,20 @@ def test_record_training_needs_ffmpeg(monkeypatch: pytest.MonkeyPatch, tmp_path:
     monkeypatch.setattr(zoo.shutil, "which", lambda name: None)
     with pytest.raises(SystemExit, match="ffmpeg command, which is not on PATH"):
         zoo.main(["record_training", "--algo", "udpo", "--env", "Pilot/Reacher-v0", "-f", str(tmp_path)])
+
+
+def test_guided_ant_maze_gif(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The docs' GIF command, on a short episode: the shipped controller and planner, rendered frames with landmarks."""
+    from PIL import Image
+
+    from sb3_pilot.experiments import guided_video
+
+    output = tmp_path / "guided.gif"
+    guided_video.main(["--max-steps", "12", "--any", "--size", "64", "--stride", "4", "--output", str(output)])
+    assert "reset seed 0" in capsys.readouterr().out
+    with Image.open(output) as gif:
+        assert gif.size == (64, 64) and gif.n_frames >= 3  # steps 0, 4, 8, then the held last frame
+        gif.seek(1)
+        second = np.asarray(gif.convert("RGB"), dtype=float)
+    green = (second[..., 1] > 150) & (second[..., 0] < 100) & (second[..., 2] < 100)
+    assert green.any()  # the landmark's marker is drawn
