@@ -212,7 +212,7 @@ def test_yaml_entries_are_sacs_plus_mega(folder: str) -> None:
 
     mega = yaml.safe_load((hyperparams_dir() / f"{folder}sac_mega.yml").read_text())
     sac = yaml.safe_load((hyperparams_dir() / f"{folder}sac.yml").read_text())
-    assert set(mega) == {"Pilot/Maze2D-v0", "Pilot/AntMaze-v0"}
+    assert set(mega) == {"Pilot/Maze2D-v0", "Pilot/AntMaze-v0", "Pilot/AntLocomotion-v0", "Pilot/Maze2DCar-v0"}
     for env_id, entry in mega.items():
         assert entry.pop("vec_env_wrapper") == "sb3_pilot.baselines.MegaGoalWrapper", env_id
         assert entry.pop("callback") == "sb3_pilot.baselines.MegaCallback", env_id
