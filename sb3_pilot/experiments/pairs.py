@@ -29,13 +29,15 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from sb3_pilot.experiments.challenges.definitions import CHALLENGES, HER
+from sb3_pilot.experiments.challenges.definitions import CHALLENGES, HER, REUSE_SHIPPED
 from sb3_pilot.experiments.challenges.stages import load_zoo_model, play_episodes, zoo_run_dir
 from sb3_pilot.experiments.evaluation import load_final_distances
 from sb3_pilot.experiments.statistics import REPS, summary_statistics
 from sb3_pilot.experiments.zoo import register
 
 FINAL_EVAL = "final_eval.json"
+#: Every challenge by its output folder's name, those of ``--reuse-shipped`` included.
+BY_FOLDER = {challenge.name: challenge for challenge in (*CHALLENGES.values(), *REUSE_SHIPPED.values())}
 
 
 def evaluate_final(run_dir: Path, episodes: int = 10) -> dict[str, Any]:
@@ -48,7 +50,7 @@ def evaluate_final(run_dir: Path, episodes: int = 10) -> dict[str, Any]:
     """
     register()  # the zoo's ALGOS gets "udpo"
     summary = json.loads((run_dir / "summary.json").read_text())
-    challenge = CHALLENGES[summary["challenge"]]
+    challenge = BY_FOLDER[summary["challenge"]]
     path = run_dir / FINAL_EVAL
     results: dict[str, Any] = json.loads(path.read_text()) if path.exists() else {}
     for stage in challenge.stages:
@@ -91,10 +93,12 @@ def _estimate(entry: dict[str, Any], digits: int = 2) -> str:
     return f"{entry['value']:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"
 
 
-def _steps(entry: dict[str, Any], seeds: int) -> str:
+def _steps(entry: dict[str, Any], seeds: int, zero_shot: bool) -> str:
     """IQM of the steps to a success rate and how many seeds reached it (the others counted at ``censored_at``)."""
     if entry["reached"] == 0:
         return f"never (0/{seeds})"
+    if zero_shot:  # evaluated after 0 target steps only
+        return f"at 0 steps ({entry['reached']}/{seeds})"
     low, high = entry["ci"]
     return f"{entry['value']:.0f} [{low:.0f}, {high:.0f}] ({entry['reached']}/{seeds})"
 
@@ -142,10 +146,12 @@ def table(run_dirs: list[Path], episodes: int = 10, reps: int = REPS) -> str:
             else:
                 distances = [entry["distance"] for entry in final.get(method, {}).values()]
             comparison = statistics["comparisons"].get(method)
+            zero_shot = result["mean"]["timesteps"] == [0]
             improvement = _estimate(comparison["probability_of_improvement"]) if comparison else ""
             lines.append(
                 f"| {pair} | {method} | {result['mean']['timesteps'][-1]} | {_estimate(stats['area'])} | "
-                f"{_steps(stats['steps_to_50'], stats['seeds'])} | {_steps(stats['steps_to_90'], stats['seeds'])} | "
+                f"{_steps(stats['steps_to_50'], stats['seeds'], zero_shot)} | "
+                f"{_steps(stats['steps_to_90'], stats['seeds'], zero_shot)} | "
                 f"{_estimate(stats['final_success'])} | {_spread(distances, 3)} | {improvement} | "
                 f"{comparison['verdict'] if comparison else ''} |"
             )
@@ -164,7 +170,7 @@ def main(argv: list[str] | None = None) -> None:
     if args.episodes < 1 or args.reps < 1:
         parser.error(f"--episodes and --reps must be at least 1, got {args.episodes} and {args.reps}")
     root = Path(args.root)
-    names = args.challenges or [name for name in CHALLENGES if (root / name / "summary.json").exists()]
+    names = args.challenges or [name for name in BY_FOLDER if (root / name / "summary.json").exists()]
     print(table([root / name for name in names], args.episodes, args.reps))
 
 
