@@ -92,14 +92,22 @@ def test_ant_maze_leaves_no_temporary_files() -> None:
     assert not xml.exists()
 
 
-def test_plan_error_is_computed_from_stored_transitions() -> None:
+@pytest.mark.parametrize("learning_starts", [1000, 10])
+def test_plan_error_is_computed_from_stored_transitions(learning_starts: int) -> None:
     """
     With a planner that plans no move (mean of ``s' - s`` zero), the plan error of each stored transition is
     ``mean((s' - s)^2)`` over the planner state (observation + achieved goal), computed here from the buffer with
-    numpy. An evaluation on an env with another number of envs (run before the transitions are stored) changes
-    nothing.
+    numpy: for warm-up's random actions (planner run for the error) and for the policy's (the planner's mean of the
+    acting forward pass reused). An evaluation on an env with another number of envs (run between acting and storing
+    the transition) changes nothing.
     """
-    model = UDPO("MultiInputPolicy", PointGoalEnv(max_episode_steps=100), learning_starts=1000, seed=0)
+    model = UDPO(
+        "MultiInputPolicy",
+        PointGoalEnv(max_episode_steps=100),
+        learning_starts=learning_starts,
+        gradient_steps=0,  # the planner stays the zero-move planner
+        seed=0,
+    )
     last_layer = model.policy.state_planner.net[-1]
     with th.no_grad():
         last_layer.weight.zero_()

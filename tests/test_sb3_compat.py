@@ -22,9 +22,10 @@ from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_pilot import UDPO
+from sb3_pilot.sac import LeanSAC
 from sb3_pilot.udpo import MultiInputPolicy, UDPOPolicy
 
-ALGOS = (SAC, UDPO)
+ALGOS = (SAC, LeanSAC, UDPO)
 
 
 def small(**overrides: Any) -> dict[str, Any]:

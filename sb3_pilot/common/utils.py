@@ -1,30 +1,10 @@
-"""Small helpers shared by the stages: freezing parameters, naming a task, checking numeric arguments."""
+"""Small helpers shared by the stages: naming a task, checking numeric arguments."""
 
 import math
 import numbers
-from collections.abc import Iterable, Iterator
-from contextlib import contextmanager
 
 import gymnasium as gym
 from stable_baselines3.common.vec_env import VecEnv
-from torch import nn
-
-
-@contextmanager
-def frozen(parameters: Iterable[nn.Parameter]) -> Iterator[None]:
-    """
-    Build graphs through these parameters without computing their gradients (they stay untouched).
-
-    :param parameters: the parameters to hold fixed inside the ``with`` block
-    """
-    parameters = list(parameters)
-    for param in parameters:
-        param.requires_grad_(False)
-    try:
-        yield
-    finally:
-        for param in parameters:
-            param.requires_grad_(True)
 
 
 def task_id(env: gym.Env | VecEnv) -> str:

@@ -3,7 +3,8 @@ RL-Zoo entry point: ``python -m sb3_pilot.experiments.zoo COMMAND [zoo flags]``,
 ``record_video``, ``record_training``, ``plot_train``, ``plot_from_file``, ``all_plots``.
 
 :func:`register` adds UDPO to the zoo as ``udpo`` (``rl_zoo3.ALGOS``, plus a hyperparameter sampler for
-``--optimize``) and registers the ``Pilot/`` tasks; :func:`main` then runs the zoo's own command, as the RL-Zoo
+``--optimize``) and :class:`~sb3_pilot.sac.LeanSAC` as ``lean_sac`` (SAC's YAML and sampler), and registers the
+``Pilot/`` tasks; :func:`main` then runs the zoo's own command, as the RL-Zoo
 docs do for SBX, so every zoo flag works. Four conveniences on top of ``python -m rl_zoo3.cli``:
 
 - ``train`` without ``--conf-file`` reads this package's ``hyperparams/<algo>.yml`` for ``udpo`` and for any task
@@ -37,12 +38,16 @@ from typing import Any
 
 import gymnasium as gym
 import optuna
+import rl_zoo3
 import yaml
 
 from sb3_pilot.envs import register_envs
 from sb3_pilot.experiments.evaluation import GoalEvalCallback
+from sb3_pilot.sac import LeanSAC
 from sb3_pilot.udpo import UDPO
 
+#: Zoo algorithms of this package that read another algorithm's YAML (``--algo lean_sac`` reads ``sac.yml``).
+CONF_OF = {"lean_sac": "sac"}
 #: Commands of ``python -m rl_zoo3.cli`` that :func:`main` runs.
 ZOO_COMMANDS = ("train", "enjoy", "record_video", "record_training", "plot_train", "plot_from_file", "all_plots")
 #: The paper's UDPO search grid (appendix, "Important Hyperparameters"): ``lambda`` and ``Delta``.
@@ -106,7 +111,12 @@ def register() -> None:
     """
     import gymnasium_robotics
     from rl_zoo3 import ALGOS, exp_manager
-    from rl_zoo3.hyperparams_opt import HYPERPARAMS_CONVERTER, HYPERPARAMS_SAMPLER, convert_offpolicy_params
+    from rl_zoo3.hyperparams_opt import (
+        HYPERPARAMS_CONVERTER,
+        HYPERPARAMS_SAMPLER,
+        convert_offpolicy_params,
+        sample_sac_params,
+    )
 
     register_envs()
     gym.register_envs(gymnasium_robotics)
@@ -118,6 +128,9 @@ def register() -> None:
     ALGOS["udpo"] = UDPO
     HYPERPARAMS_SAMPLER["udpo"] = sample_udpo_params
     HYPERPARAMS_CONVERTER["udpo"] = convert_offpolicy_params
+    ALGOS["lean_sac"] = LeanSAC
+    HYPERPARAMS_SAMPLER["lean_sac"] = sample_sac_params
+    HYPERPARAMS_CONVERTER["lean_sac"] = convert_offpolicy_params
 
 
 def _with_conf_file(argv: list[str]) -> list[str]:
@@ -128,9 +141,12 @@ def _with_conf_file(argv: list[str]) -> list[str]:
     parser.add_argument("-conf", "--conf-file", default=None)
     args, _ = parser.parse_known_args(argv)
     if args.conf_file is None:
-        default = hyperparams_dir() / f"{args.algo}.yml"
+        conf_name = CONF_OF.get(args.algo, args.algo)
+        default = hyperparams_dir() / f"{conf_name}.yml"
         if default.is_file() and (args.algo == "udpo" or args.env in yaml.safe_load(default.read_text())):
             return [*argv, "--conf-file", str(default)]
+        if args.algo in CONF_OF:  # the zoo's own file of that algorithm
+            return [*argv, "--conf-file", str(Path(rl_zoo3.__file__).parent / "hyperparams" / f"{conf_name}.yml")]
     elif not Path(args.conf_file).exists() and (hyperparams_dir() / args.conf_file).is_file():
         return [*argv, "--conf-file", str(hyperparams_dir() / args.conf_file)]
     return argv

@@ -5,7 +5,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import torch as th
 from gymnasium import spaces
-from stable_baselines3.common.policies import BaseModel, BasePolicy, ContinuousCritic
+from stable_baselines3.common.policies import BaseModel, BasePolicy
 from stable_baselines3.common.preprocessing import get_action_dim, get_flattened_obs_dim, is_image_space, preprocess_obs
 from stable_baselines3.common.torch_layers import (
     BaseFeaturesExtractor,
@@ -17,6 +17,7 @@ from stable_baselines3.common.torch_layers import (
 from stable_baselines3.common.type_aliases import PyTorchObs, Schedule
 from torch import nn
 
+from sb3_pilot.common.critics import EnsembleCritic
 from sb3_pilot.common.distributions import (
     LOG_STD_MAX,
     LOG_STD_MIN,
@@ -24,6 +25,7 @@ from sb3_pilot.common.distributions import (
     squashed_gaussian_log_prob,
     squashed_gaussian_sample,
 )
+from sb3_pilot.common.lean import lean_optimizer_kwargs
 
 #: Planner states are observations without this key (the target goal ``g`` conditions ``h``, it is not planned).
 DESIRED_GOAL = "desired_goal"
@@ -319,10 +321,13 @@ class ForwardDynamics(DynamicsModel):
 
 class UDPOPolicy(BasePolicy):
     """
-    Decoupled goal-conditioned policy ``pi(a | s, g) = E_{s' ~ h(.|s, g)} [I(a | s, s')]`` with twin Q critics.
+    Decoupled goal-conditioned policy ``pi(a | s, g) = E_{s' ~ h(.|s, g)} [I(a | s, s')]`` with twin Q critics
+    (one :class:`~sb3_pilot.common.critics.EnsembleCritic`).
 
     Acting samples a plan ``s' ~ h(. | s, g)`` and then an action ``a ~ I(. | s, s')``. The log-probability used for
     the entropy terms is ``log I(a | s, s')`` at the sampled plan (as in DePO), not the intractable marginal.
+    ``last_plan_mean`` holds the planner's mean ``E[h(. | s, g)]`` of the last :meth:`predict`, which UDPO's plan
+    error reuses instead of a second forward pass per env step.
 
     :param observation_space: Observation space (see :func:`check_observation_space`)
     :param action_space: Action space (Box)
@@ -334,7 +339,8 @@ class UDPOPolicy(BasePolicy):
     :param features_extractor_kwargs: Keyword arguments for the features extractor
     :param normalize_images: Whether to divide image entries by 255 (only ``desired_goal`` may be an image)
     :param optimizer_class: Optimizer class
-    :param optimizer_kwargs: Optimizer keyword arguments (except the learning rate)
+    :param optimizer_kwargs: Optimizer keyword arguments (except the learning rate); Adam is fused
+        (``fused=True``) unless they say otherwise
     :param n_critics: Number of critic networks
     :param planner_lr_schedule: Learning rate schedule of the state planner (None: ``lr_schedule``)
     :param inverse_dynamics_lr_schedule: Learning rate schedule of the inverse dynamics (None: ``lr_schedule``)
@@ -348,8 +354,9 @@ class UDPOPolicy(BasePolicy):
     state_planner: StatePlanner
     inverse_dynamics: InverseDynamics
     forward_dynamics: ForwardDynamics | None
-    critic: ContinuousCritic
-    critic_target: ContinuousCritic
+    critic: EnsembleCritic
+    critic_target: EnsembleCritic
+    last_plan_mean: th.Tensor | None = None
 
     def __init__(
         self,
@@ -379,7 +386,7 @@ class UDPOPolicy(BasePolicy):
             features_extractor_class,
             features_extractor_kwargs,
             optimizer_class=optimizer_class,
-            optimizer_kwargs=optimizer_kwargs,
+            optimizer_kwargs=lean_optimizer_kwargs(optimizer_class, optimizer_kwargs),
             squash_output=True,
             normalize_images=normalize_images,
         )
@@ -456,9 +463,9 @@ class UDPOPolicy(BasePolicy):
             **self.optimizer_kwargs,  # type: ignore[call-arg]
         )
 
-    def _make_critic(self) -> ContinuousCritic:
+    def _make_critic(self) -> EnsembleCritic:
         features_extractor = self.make_features_extractor()
-        return ContinuousCritic(
+        return EnsembleCritic(
             self.observation_space,
             self.action_space,
             net_arch=self.critic_arch,
@@ -536,7 +543,9 @@ class UDPOPolicy(BasePolicy):
         return self._predict(obs, deterministic=deterministic)
 
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
-        return self.plan_and_act(observation, deterministic).actions
+        plan = self.plan_and_act(observation, deterministic)
+        self.last_plan_mean = plan.distribution.mean
+        return plan.actions
 
     def predict_next_state(self, observation: np.ndarray | dict[str, np.ndarray], deterministic: bool = True) -> np.ndarray:
         """

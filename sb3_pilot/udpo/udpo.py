@@ -14,13 +14,13 @@ from stable_baselines3.common.utils import (
     FloatSchedule,
     get_parameters_by_name,
     obs_as_tensor,
-    polyak_update,
     update_learning_rate,
 )
 from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
 from torch.nn import functional as F
 
-from sb3_pilot.common.utils import check_number, frozen
+from sb3_pilot.common.lean import LeanSACSteps, LossRecorder
+from sb3_pilot.common.utils import check_number
 from sb3_pilot.udpo.policies import (
     NO_SDE,
     ForwardDynamics,
@@ -38,7 +38,7 @@ SelfUDPO = TypeVar("SelfUDPO", bound="UDPO")
 PLAN_TARGETS = ("policy", "buffer")
 
 
-class UDPO(OffPolicyAlgorithm):
+class UDPO(LeanSACSteps, OffPolicyAlgorithm):
     """
     Universal Decoupled Policy Optimisation (UDPO), PILoT's pre-training algorithm
     (Planning Immediate Landmarks of Targets, Liu et al., ICLR 2023, section 3.1).
@@ -228,7 +228,8 @@ class UDPO(OffPolicyAlgorithm):
         self.inverse_dynamics_gradient_steps = inverse_dynamics_gradient_steps
         self.planner_learning_rate = planner_learning_rate
         self.inverse_dynamics_learning_rate = inverse_dynamics_learning_rate
-        self._plan_errors: list[float] = []
+        self._plan_errors: list[th.Tensor] = []
+        self._rollout_plan_mean: th.Tensor | None = None
 
         if _init_setup_model:
             self._setup_model()
@@ -283,8 +284,9 @@ class UDPO(OffPolicyAlgorithm):
         self.forward_dynamics = self.policy.forward_dynamics
         self.critic = self.policy.critic
         self.critic_target = self.policy.critic_target
-        self._inverse_dynamics_parameters = list(self.inverse_dynamics.parameters())
+        self._planner_parameters = list(self.state_planner.parameters())
         self._critic_parameters = list(self.critic.parameters())
+        self._critic_target_parameters = list(self.critic_target.parameters())
 
     def train(self, gradient_steps: int, batch_size: int = 64) -> None:
         self.policy.set_training_mode(True)
@@ -298,9 +300,7 @@ class UDPO(OffPolicyAlgorithm):
                 self.forward_dynamics.optimizer, self.inverse_dynamics_lr_schedule(self._current_progress_remaining)
             )
         train_planner = not self.policy.freeze_state_planner
-
-        ent_coef_losses, ent_coefs = [], []
-        actor_losses, critic_losses, planner_nlls, planner_losses, forward_dynamics_losses = [], [], [], [], []
+        losses = LossRecorder()
 
         for gradient_step in range(gradient_steps):
             # I is refitted before the policy update that follows it (paper section 3.1, Algorithm 1)
@@ -310,55 +310,35 @@ class UDPO(OffPolicyAlgorithm):
             replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
             discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
 
-            # a ~ I(. | s, s') at a reparameterised plan s' = h(eps; s, g) (eq. "repara"); I is held fixed, so the
-            # graph of the actor loss reaches the planner only
-            with frozen(self._inverse_dynamics_parameters):
-                plan = self.policy.plan_and_act(replay_data.observations)
+            # a ~ I(. | s, s') at a reparameterised plan s' = h(eps; s, g) (eq. "repara"); I is held fixed: the planner
+            # loss's backward reaches the planner's parameters only
+            plan = self.policy.plan_and_act(replay_data.observations)
             log_prob = plan.log_prob.reshape(-1, 1)
 
             # Entropy coefficient loss (SAC), with log I(a | s, s') as the policy's log-probability
-            ent_coef_loss = None
-            if self.ent_coef_optimizer is not None and self.log_ent_coef is not None:
-                ent_coef = th.exp(self.log_ent_coef.detach())
-                ent_coef_loss = -(self.log_ent_coef * (log_prob + self.target_entropy).detach()).mean()
-                ent_coef_losses.append(ent_coef_loss.item())
-            else:
-                ent_coef = self.ent_coef_tensor
-            ent_coefs.append(ent_coef.item())
-
-            if ent_coef_loss is not None and self.ent_coef_optimizer is not None:
-                self.ent_coef_optimizer.zero_grad()
-                ent_coef_loss.backward()
-                self.ent_coef_optimizer.step()
+            ent_coef = self._entropy_coef_step(log_prob, losses)
 
             # Critic loss (SAC): 1/2 sum_i (Q_i(s, a, g) - y)^2,
             # y = r + gamma (1 - d) (min_i Q'_i(s', a', g) - alpha log I(a' | s', s'')), s'' ~ h(. | s', g)
             with th.no_grad():
                 next_plan = self.policy.plan_and_act(replay_data.next_observations)
-                next_q_values = th.cat(self.critic_target(replay_data.next_observations, next_plan.actions), dim=1)
-                next_q_values, _ = th.min(next_q_values, dim=1, keepdim=True)
+                next_q_values = self.critic_target.q_values(replay_data.next_observations, next_plan.actions).amin(dim=0)
                 next_q_values = next_q_values - ent_coef * next_plan.log_prob.reshape(-1, 1)
                 target_q_values = replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_values
 
-            current_q_values = self.critic(replay_data.observations, replay_data.actions)
-            critic_loss = 0.5 * sum(F.mse_loss(current_q, target_q_values) for current_q in current_q_values)
-            assert isinstance(critic_loss, th.Tensor)
-            critic_losses.append(critic_loss.item())
-            self.critic.optimizer.zero_grad()
-            critic_loss.backward()
-            self.critic.optimizer.step()
+            self._critic_step(replay_data.observations, replay_data.actions, target_q_values, losses)
 
-            # DePG actor loss (eq. "depg"): E[alpha log I(a | s, s') - min_i Q_i(s, a, g)] through the frozen I
-            with frozen(self._critic_parameters):  # no critic weight gradients from the actor loss: they would be discarded
-                q_values_pi = th.cat(self.critic(replay_data.observations, plan.actions), dim=1)
-            min_qf_pi, _ = th.min(q_values_pi, dim=1, keepdim=True)
+            # DePG actor loss (eq. "depg"): E[alpha log I(a | s, s') - min_i Q_i(s, a, g)] through the frozen I and critics
+            min_qf_pi = self.critic.q_values(replay_data.observations, plan.actions).amin(dim=0)
             actor_loss = (ent_coef * log_prob - min_qf_pi).mean()
             # Planner likelihood term, the paper's constraint max E_{(s,s') ~ pi}[h(s' | s, g)]: -log h(s'_target | s, g)
             real_next_state = self.state_planner.planner_state(replay_data.next_observations)
             if self.forward_dynamics is not None:
                 # plan_target="policy": (s, s') ~ pi, s' ~ T(. | s, a) for the policy's own action a ~ I(. | s, s'_plan)
-                forward_dynamics_loss = self.train_forward_dynamics(plan.state, real_next_state, replay_data.actions)
-                forward_dynamics_losses.append(forward_dynamics_loss)
+                losses.add(
+                    "forward_dynamics_loss",
+                    self.train_forward_dynamics(plan.state, real_next_state, replay_data.actions),
+                )
                 with th.no_grad():
                     target_next_state = self.forward_dynamics(plan.state, plan.actions.detach())
             else:
@@ -367,33 +347,22 @@ class UDPO(OffPolicyAlgorithm):
             planner_nll = -plan.distribution.log_prob(target_next_state).mean()
             # Planner loss: the final planner gradient of section 3.1, DePG + lambda * likelihood term
             planner_loss = actor_loss + self.planner_coef * planner_nll
-            actor_losses.append(actor_loss.item())
-            planner_nlls.append(planner_nll.item())
-            planner_losses.append(planner_loss.item())
+            losses.add("actor_loss", actor_loss)
+            losses.add("planner_nll", planner_nll)
+            losses.add("planner_loss", planner_loss)
             if train_planner:
                 self.state_planner.optimizer.zero_grad()
-                planner_loss.backward()
+                planner_loss.backward(inputs=self._planner_parameters)
                 self.state_planner.optimizer.step()
 
             # Target critics: SAC's rule
-            if gradient_step % self.target_update_interval == 0:
-                polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
-                polyak_update(self.batch_norm_stats, self.batch_norm_stats_target, 1.0)
+            self._update_target_critics(gradient_step)
 
         self._n_updates += gradient_steps
-
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
-        self.logger.record("train/ent_coef", np.mean(ent_coefs))
-        self.logger.record("train/actor_loss", np.mean(actor_losses))
-        self.logger.record("train/critic_loss", np.mean(critic_losses))
-        self.logger.record("train/planner_nll", np.mean(planner_nlls))
-        self.logger.record("train/planner_loss", np.mean(planner_losses))
-        if len(ent_coef_losses) > 0:
-            self.logger.record("train/ent_coef_loss", np.mean(ent_coef_losses))
-        if len(forward_dynamics_losses) > 0:
-            self.logger.record("train/forward_dynamics_loss", np.mean(forward_dynamics_losses))
+        losses.record(self.logger)
 
-    def train_forward_dynamics(self, state: th.Tensor, next_state: th.Tensor, actions: th.Tensor) -> float:
+    def train_forward_dynamics(self, state: th.Tensor, next_state: th.Tensor, actions: th.Tensor) -> th.Tensor:
         """
         One maximum-likelihood step of the forward dynamics ``T(s' | s, a)`` on a minibatch of buffer transitions
         (``plan_target="policy"``). Only ``policy.forward_dynamics`` changes.
@@ -408,7 +377,7 @@ class UDPO(OffPolicyAlgorithm):
         self.forward_dynamics.optimizer.zero_grad()
         loss.backward()
         self.forward_dynamics.optimizer.step()
-        return loss.item()
+        return loss.detach()
 
     def train_inverse_dynamics(self, gradient_steps: int, batch_size: int) -> float:
         """
@@ -451,8 +420,23 @@ class UDPO(OffPolicyAlgorithm):
         dones: np.ndarray,
         infos: list[dict[str, Any]],
     ) -> None:
-        self._plan_errors.append(self.plan_error(self._last_obs, self._reached_observation(new_obs, dones, infos)))  # type: ignore[arg-type]
+        self._plan_errors.append(
+            self.plan_error(
+                self._last_obs,  # type: ignore[arg-type]
+                self._reached_observation(new_obs, dones, infos),
+                planned=self._rollout_plan_mean,
+            )
+        )
         super()._store_transition(replay_buffer, buffer_action, new_obs, reward, dones, infos)
+
+    def _sample_action(
+        self, learning_starts: int, action_noise: ActionNoise | None = None, n_envs: int = 1
+    ) -> tuple[np.ndarray, np.ndarray]:
+        # The planner's mean at the acting forward pass, for this step's plan error (None for warm-up's random actions)
+        self.policy.last_plan_mean = None
+        actions, buffer_actions = super()._sample_action(learning_starts, action_noise, n_envs)
+        self._rollout_plan_mean = self.policy.last_plan_mean
+        return actions, buffer_actions
 
     @staticmethod
     def _reached_observation(
@@ -474,25 +458,30 @@ class UDPO(OffPolicyAlgorithm):
         return reached_array
 
     def plan_error(
-        self, observations: np.ndarray | dict[str, np.ndarray], next_observations: np.ndarray | dict[str, np.ndarray]
-    ) -> float:
+        self,
+        observations: np.ndarray | dict[str, np.ndarray],
+        next_observations: np.ndarray | dict[str, np.ndarray],
+        planned: th.Tensor | None = None,
+    ) -> th.Tensor:
         """
         The paper's "pred-real-mse" of transitions: mean squared error, per state dimension and transition, between
         the planner's mean next state ``E[h(. | s, g)]`` and the reached planner state ``s'``.
 
         :param observations: batch of observations ``s`` (as the policy sees them)
         :param next_observations: the batch of observations reached from them
-        :return: the mean squared error
+        :param planned: ``E[h(. | s, g)]`` if already computed (by the acting forward pass), else computed here
+        :return: the mean squared error, a scalar tensor
         """
         with th.no_grad():
             planner = self.state_planner
-            planned = planner.distribution(obs_as_tensor(observations, self.device)).mean
+            if planned is None:
+                planned = planner.distribution(obs_as_tensor(observations, self.device)).mean
             reached = planner.planner_state(obs_as_tensor(next_observations, self.device))
-            return F.mse_loss(planned, reached).item()
+            return F.mse_loss(planned, reached)
 
     def dump_logs(self) -> None:
         if self._plan_errors:
-            self.logger.record("rollout/plan_error", float(np.mean(self._plan_errors)))
+            self.logger.record("rollout/plan_error", th.stack(self._plan_errors).mean().item())
             self._plan_errors = []
         super().dump_logs()
 
@@ -530,8 +519,8 @@ class UDPO(OffPolicyAlgorithm):
             "planner_lr_schedule",
             "inverse_dynamics_lr_schedule",
             "_plan_errors",
-            "_inverse_dynamics_parameters",
-            "_critic_parameters",
+            "_planner_parameters",
+            "_rollout_plan_mean",
         ]
 
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:

@@ -1,0 +1,162 @@
+"""
+The lean update shared by UDPO and :class:`~sb3_pilot.sac.LeanSAC`: SAC's temperature, critic and target-network steps
+with the critics as one ensemble, fused Adam, one ``foreach`` target update, and the losses read from the device once
+per ``train()`` call. Same losses and same numbers as SB3's ``SAC.train`` (up to float rounding), fewer kernels and
+host reads per gradient step.
+"""
+
+from typing import Any
+
+import torch as th
+from stable_baselines3.common.logger import Logger
+from stable_baselines3.common.policies import BaseModel
+from stable_baselines3.common.save_util import load_from_zip_file
+from stable_baselines3.common.type_aliases import PyTorchObs
+
+from sb3_pilot.common.critics import EnsembleCritic, stack_sb3_critic_parameters
+
+
+def soft_update(params: list[th.Tensor], target_params: list[th.Tensor], tau: float) -> None:
+    """
+    SB3's ``polyak_update`` as one fused ``foreach`` operation: ``target <- target + tau (param - target)``, in place.
+
+    :param params: parameters to move the targets towards
+    :param target_params: the target parameters (same order and shapes)
+    :param tau: the soft update coefficient (1: copy)
+    """
+    if params:
+        with th.no_grad():
+            th._foreach_lerp_(target_params, params, tau)
+
+
+def lean_optimizer_kwargs(
+    optimizer_class: type[th.optim.Optimizer], optimizer_kwargs: dict[str, Any] | None
+) -> dict[str, Any]:
+    """
+    Optimizer keyword arguments of the lean update: Adam (and AdamW) fused into one kernel per step (``fused=True``)
+    unless ``optimizer_kwargs`` sets ``fused`` or ``foreach``; other optimizers keep their arguments.
+
+    :param optimizer_class: the optimizer class
+    :param optimizer_kwargs: the user's keyword arguments (None: none)
+    """
+    optimizer_kwargs = dict(optimizer_kwargs or {})
+    if issubclass(optimizer_class, (th.optim.Adam, th.optim.AdamW)) and not {"fused", "foreach"} & set(optimizer_kwargs):
+        optimizer_kwargs["fused"] = True
+    return optimizer_kwargs
+
+
+class LossRecorder:
+    """
+    Losses of the gradient steps of one ``train()`` call, kept as tensors and read from the device once, when
+    recorded, instead of one host read (``.item()``) per loss and step.
+    """
+
+    def __init__(self) -> None:
+        self._values: dict[str, list[th.Tensor]] = {}
+
+    def add(self, name: str, value: th.Tensor) -> None:
+        """
+        :param name: the logger key under ``train/``
+        :param value: a scalar (or one-element) tensor
+        """
+        self._values.setdefault(name, []).append(value.detach().reshape(()))
+
+    def record(self, logger: Logger) -> None:
+        """Record the mean of each loss over the steps as ``train/<name>``."""
+        if self._values:
+            means = th.stack([th.stack(values).mean() for values in self._values.values()]).tolist()
+            for name, mean in zip(self._values, means, strict=True):
+                logger.record(f"train/{name}", mean)
+
+
+def q_values(critic: BaseModel, observations: PyTorchObs, actions: th.Tensor) -> th.Tensor:
+    """
+    ``Q_i(s, a)`` of every critic, shape ``(n_critics, batch, 1)``: one ensemble pass for an :class:`EnsembleCritic`,
+    the stacked outputs of any other SB3 critic (e.g. a custom ``ContinuousCritic`` subclass).
+
+    :param critic: the critic
+    :param observations: observation batch
+    :param actions: action batch
+    """
+    if isinstance(critic, EnsembleCritic):
+        return critic.q_values(observations, actions)
+    return th.stack(critic(observations, actions))
+
+
+class LeanSACSteps:
+    """
+    The steps of SAC's update that UDPO shares, as methods of an SB3 off-policy algorithm that has SAC's attributes
+    (``critic``, ``critic_target``, ``log_ent_coef``, ``ent_coef_optimizer``, ``target_entropy``, ``tau``, ...) and
+    the lists ``_critic_parameters`` and ``_critic_target_parameters``.
+    """
+
+    critic: BaseModel
+    critic_target: BaseModel
+    log_ent_coef: th.Tensor | None
+    ent_coef_optimizer: th.optim.Optimizer | None
+    ent_coef_tensor: th.Tensor
+    target_entropy: float
+    tau: float
+    target_update_interval: int
+    batch_norm_stats: list[th.Tensor]
+    batch_norm_stats_target: list[th.Tensor]
+    _critic_parameters: list[th.Tensor]
+    _critic_target_parameters: list[th.Tensor]
+
+    def _entropy_coef_step(self, log_prob: th.Tensor, losses: LossRecorder) -> th.Tensor:
+        """
+        SAC's temperature step: loss ``-log(alpha) (log pi(a|s) + target_entropy)`` on the policy's log-probabilities.
+
+        :param log_prob: ``log pi(a | s)`` of the sampled actions, shape ``(batch, 1)``
+        :param losses: where the loss and ``alpha`` are logged
+        :return: ``alpha`` of this gradient step (before the temperature's update, as in SAC), detached
+        """
+        if self.ent_coef_optimizer is None or self.log_ent_coef is None:
+            ent_coef = self.ent_coef_tensor
+        else:
+            ent_coef = th.exp(self.log_ent_coef.detach())
+            ent_coef_loss = -(self.log_ent_coef * (log_prob + self.target_entropy).detach()).mean()
+            losses.add("ent_coef_loss", ent_coef_loss)
+            self.ent_coef_optimizer.zero_grad()
+            ent_coef_loss.backward()
+            self.ent_coef_optimizer.step()
+        losses.add("ent_coef", ent_coef)
+        return ent_coef
+
+    def _critic_step(
+        self, observations: PyTorchObs, actions: th.Tensor, target_q_values: th.Tensor, losses: LossRecorder
+    ) -> None:
+        """
+        SAC's critic step: loss ``1/2 sum_i mean_batch (Q_i(s, a) - y)^2`` for the TD target ``y``, one optimizer step.
+
+        :param observations: observations ``s`` of the batch
+        :param actions: the buffer's actions ``a``
+        :param target_q_values: the TD targets ``y``, shape ``(batch, 1)``
+        :param losses: where the loss is logged
+        """
+        current_q_values = q_values(self.critic, observations, actions)
+        critic_loss = 0.5 * ((current_q_values - target_q_values) ** 2).mean(dim=(1, 2)).sum()
+        losses.add("critic_loss", critic_loss)
+        self.critic.optimizer.zero_grad()
+        critic_loss.backward()
+        self.critic.optimizer.step()
+
+    def set_parameters(
+        self, load_path_or_dict: str | dict[str, Any], exact_match: bool = True, device: th.device | str = "auto"
+    ) -> None:
+        # Models saved with SB3's twin critics (qf0, qf1: SB3's SAC, sb3-pilot <= 0.2) are stacked into the ensemble
+        params = load_path_or_dict
+        if not isinstance(params, dict):
+            _, params, _ = load_from_zip_file(load_path_or_dict, device=device, load_data=False)
+        if isinstance(self.critic, EnsembleCritic):
+            stack_sb3_critic_parameters(params, self.critic.n_critics)
+        super().set_parameters(params, exact_match=exact_match, device=device)  # type: ignore[misc]
+
+    def _excluded_save_params(self) -> list[str]:
+        return [*super()._excluded_save_params(), "_critic_parameters", "_critic_target_parameters"]  # type: ignore[misc]
+
+    def _update_target_critics(self, gradient_step: int) -> None:
+        """SAC's target rule: Polyak averaging every ``target_update_interval`` steps, batch-norm statistics copied."""
+        if gradient_step % self.target_update_interval == 0:
+            soft_update(self._critic_parameters, self._critic_target_parameters, self.tau)
+            soft_update(self.batch_norm_stats, self.batch_norm_stats_target, 1.0)
