@@ -5,6 +5,7 @@ built with warnings as errors by ``make test`` / ``make docs`` (``sphinx-build -
 """
 
 import re
+import textwrap
 from pathlib import Path
 
 import pytest
@@ -12,7 +13,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 
-MARKDOWN_BLOCK = re.compile(r"^```python\n(.*?)^```$", re.MULTILINE | re.DOTALL)
+MARKDOWN_BLOCK = re.compile(r"^( *)```python\n(.*?)^\1```$", re.MULTILINE | re.DOTALL)  # fences in list items too
 RST_BLOCK = re.compile(r"^\.\. code-block:: python\n((?:\n|   .*\n)+)", re.MULTILINE)
 
 
@@ -20,7 +21,7 @@ def python_blocks(path: Path) -> list[str]:
     """The Python code blocks of a Markdown (```python fences) or reStructuredText (``.. code-block:: python``) page."""
     text = path.read_text()
     if path.suffix == ".md":
-        return MARKDOWN_BLOCK.findall(text)
+        return [textwrap.dedent(block) for _, block in MARKDOWN_BLOCK.findall(text)]
     return ["\n".join(line[3:] for line in block.splitlines()) for block in RST_BLOCK.findall(text)]
 
 
@@ -34,7 +35,7 @@ PAGES = sorted(
 def test_extraction_finds_the_pages() -> None:
     """The extraction sees the pages that have examples (a broken pattern would silently test nothing)."""
     names = {path.relative_to(ROOT).as_posix() for path in PAGES}
-    assert {"README.md", "docs/guide/quickstart.md", "docs/modules/udpo.rst", "docs/modules/distill.rst"} <= names
+    assert {"README.md", "docs/guide/quickstart.md", "docs/guide/algos.md", "docs/modules/udpo.rst"} <= names
     assert len(python_blocks(DOCS / "guide" / "quickstart.md")) >= 6
 
 
