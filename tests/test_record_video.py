@@ -21,7 +21,7 @@ def run_zoo(*args: str, cwd: Path) -> str:
     return result.stdout
 
 
-def test_record_video_of_udpo_on_a_pilot_task(tmp_path: Path) -> None:
+def test_record_video_and_training_of_udpo_on_a_pilot_task(tmp_path: Path) -> None:
     common = ("--algo", "udpo", "--env", "Pilot/Reacher-v0", "-f", "logs")
     small = ("-params", "learning_starts:100", "n_envs:1", "batch_size:64")
     run_zoo("train", *common, "--num-threads", "1", "-n", "200", "--seed", "0", "--eval-freq", "-1", *small, cwd=tmp_path)
@@ -29,10 +29,20 @@ def test_record_video_of_udpo_on_a_pilot_task(tmp_path: Path) -> None:
     videos = list((tmp_path / "videos").glob("final-model-udpo-Pilot-Reacher-v0-*.mp4"))
     assert len(videos) == 1 and videos[0].stat().st_size > 1000, out
     assert videos[0].read_bytes()[4:8] == b"ftyp"  # an MP4 file
+    # the zoo's own record_training calls `python -m rl_zoo3.record_video`, which knows no udpo: here it works
+    out = run_zoo("record_training", *common, "-n", "20", "-o", "training", cwd=tmp_path)
+    training = tmp_path / "training" / "training.mp4"
+    assert training.is_file() and training.read_bytes()[4:8] == b"ftyp", out
 
 
 def test_record_training_needs_ffmpeg(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
+
+    def no_binary() -> str:
+        raise RuntimeError("No ffmpeg exe could be found.")
+
     monkeypatch.setattr(zoo.shutil, "which", lambda name: None)
+    monkeypatch.setattr(imageio_ffmpeg, "get_ffmpeg_exe", no_binary)
     with pytest.raises(SystemExit, match="ffmpeg command, which is not on PATH"):
         zoo.main(["record_training", "--algo", "udpo", "--env", "Pilot/Reacher-v0", "-f", str(tmp_path)])
 

@@ -19,20 +19,24 @@ docs do for SBX, so every zoo flag works. Four conveniences on top of ``python -
 
 ``record_video`` and ``record_training`` are the zoo's scripts (``rl_zoo3.record_video``, ``rl_zoo3.record_training``)
 with UDPO and the tasks registered; ``record_training`` records each checkpoint through this entry point (the zoo's
-calls ``python -m rl_zoo3.record_video``, which knows no ``udpo``) and needs the ``ffmpeg`` command.
+calls ``python -m rl_zoo3.record_video``, which knows no ``udpo``) and runs the ``ffmpeg`` command (the system's, else
+``imageio-ffmpeg``'s).
 """
 
 from __future__ import annotations
 
 import argparse
 import functools
+import os
 import runpy
 import shutil
 import site
 import subprocess
 import sys
 import sysconfig
-from collections.abc import Callable
+import tempfile
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -171,16 +175,45 @@ def _plot_train(argv: list[str], prog: str) -> None:
         print(f"Saved {args.output}")
 
 
+@contextmanager
+def _ffmpeg_command() -> Iterator[None]:
+    """
+    An ``ffmpeg`` command on ``PATH`` for the zoo's ``os.system("ffmpeg ...")`` calls: the system's, else the binary
+    of ``imageio-ffmpeg`` (installed with the zoo, through ``moviepy``, which its videos need).
+    """
+    if shutil.which("ffmpeg") is not None:
+        yield
+        return
+    try:
+        import imageio_ffmpeg
+
+        binary = imageio_ffmpeg.get_ffmpeg_exe()
+    except (ImportError, RuntimeError) as error:
+        raise SystemExit(
+            "record_training adds titles to the videos and joins them with the ffmpeg command, which is not on PATH "
+            "(nor is imageio-ffmpeg's): install ffmpeg (e.g. apt install ffmpeg), or record one model with record_video."
+        ) from error
+    path = os.environ.get("PATH", "")
+    with tempfile.TemporaryDirectory() as folder:
+        os.symlink(binary, Path(folder, "ffmpeg"))
+        os.environ["PATH"] = f"{folder}{os.pathsep}{path}"
+        try:
+            yield
+        finally:
+            os.environ["PATH"] = path
+
+
 def _record_training(argv: list[str], prog: str) -> None:
     """
     The zoo's ``record_training``, whose ``python -m rl_zoo3.record_video`` calls (one per saved model) go to this
-    entry point's ``record_video`` instead, with this Python.
+    entry point's ``record_video`` instead, with this Python. ``-o/--output-folder`` is made absolute: the zoo lists
+    the videos for ``ffmpeg``'s concatenation by that path, which ``ffmpeg`` reads relative to the list's folder.
     """
-    if shutil.which("ffmpeg") is None:
-        raise SystemExit(
-            "record_training adds titles to the videos and joins them with the ffmpeg command, which is not on PATH: "
-            "install ffmpeg (e.g. apt install ffmpeg), or record one model with record_video."
-        )
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument("-o", "--output-folder", default=None)
+    args, zoo_argv = parser.parse_known_args(argv)
+    if args.output_folder is not None:
+        zoo_argv = [*zoo_argv, "--output-folder", str(Path(args.output_folder).resolve())]
     zoo_call = subprocess.call
 
     def call(args: list[str], *rest: Any, **kwargs: Any) -> int:
@@ -188,12 +221,13 @@ def _record_training(argv: list[str], prog: str) -> None:
             args = [sys.executable, "-m", "sb3_pilot.experiments.zoo", "record_video", *args[3:]]
         return zoo_call(args, *rest, **kwargs)
 
-    sys.argv = [prog, *argv]
-    subprocess.call = call  # type: ignore[assignment]
-    try:
-        runpy.run_module("rl_zoo3.record_training", run_name="__main__")
-    finally:
-        subprocess.call = zoo_call
+    sys.argv = [prog, *zoo_argv]
+    with _ffmpeg_command():
+        subprocess.call = call  # type: ignore[assignment]
+        try:
+            runpy.run_module("rl_zoo3.record_training", run_name="__main__")
+        finally:
+            subprocess.call = zoo_call
 
 
 def main(argv: list[str] | None = None) -> None:
