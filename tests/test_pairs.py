@@ -81,6 +81,18 @@ def test_demo_budget_is_named() -> None:
     assert steps["source"] >= 8000 and steps["pilot"] == steps["her"] <= steps["source"]
 
 
+def test_maze_car_shipped_planner_is_shared() -> None:
+    """``maze-car --reuse-shipped``: one shipped Maze2D planner for every seed, the target stages exactly maze-car's."""
+    from sb3_pilot.distill import GoalPlanner
+    from sb3_pilot.experiments.challenges import REUSE_SHIPPED
+
+    shipped, full = REUSE_SHIPPED["maze-car"], CHALLENGES["maze-car"]
+    assert shipped.stages[0].name == "distill" and shipped.stages[1:] == full.stages[2:]
+    assert shipped.fast_hyperparams == full.fast_hyperparams and shipped.target_env == full.target_env
+    assert shipped.steps["cpu"] == {name: full.steps["cpu"][name] for name in ("pilot", "pilot_disp", "her")}
+    assert GoalPlanner.load(shipped.stages[0].path).source_task == "Pilot/Maze2D-v0"
+
+
 def test_pairs_cli_bad_input(capsys: pytest.CaptureFixture[str]) -> None:
     for argv in (["--reps", "0"], ["--episodes", "0"]):
         with pytest.raises(SystemExit):

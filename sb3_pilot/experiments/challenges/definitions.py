@@ -6,7 +6,10 @@ transfer pair the paper runs (six), and the budgets they run at:
   (Fetch-Push -> Fetch-Push-High-Dim): the source UDPO's state planner, frozen, in a target UDPO;
 - Vec-to-Image: ``vec-to-image`` (Fetch-Reach -> Fetch-Reach-Image) and ``vec-to-image-reacher`` (Reacher ->
   Reacher-Image): a distilled goal planner's bonus for a pixel-only SAC + HER (:class:`PixelGoalSACPolicy`);
-- ``complex-morph`` (Point -> Ant locomotion) and ``zero-shot-ant-maze`` (2D-Maze -> Ant-Maze, zero-shot).
+- ``complex-morph`` (Point -> Ant locomotion) and ``zero-shot-ant-maze`` (2D-Maze -> Ant-Maze, zero-shot);
+
+and one pair beyond the paper, cheap enough for ten seeds on a CPU: ``maze-car`` (2D-Maze's point -> a car-like agent in
+the same maze, ``Pilot/Maze2DCar-v0``), a bonus challenge like Vec-to-Image's.
 
 Every bonus challenge runs HER + PILoT twice: with the paper's similarity (``goal_cosine``, cosine of the goal
 vectors, stage ``pilot``) and with this package's default (``displacement_cosine``, cosine of the achieved and the
@@ -207,6 +210,20 @@ def _bonus_stages(source_env: str, target_env: str, source_env_kwargs: dict[str,
     )
 
 
+MAZE_CAR_DESCRIPTION = (
+    "UDPO on 2D-Maze (a point) -> distilled goal planner -> HER + bonus on Maze-Car (a car-like agent in the same maze: "
+    "speed and turn rate), vs SAC+HER"
+)
+# uniform starts and goals on both tasks: the planner knows the maze everywhere, and the car's 50-step episodes cannot
+# join the two ends of the U (about 24 units at 0.5 a step, and turns)
+MAZE_CAR_STAGES = _bonus_stages("Pilot/Maze2D-v0", "Pilot/Maze2DCar-v0", {"goal_distribution": "uniform"})
+MAZE_CAR_STEPS = {
+    "smoke": {"source": 300, "pilot": 300, "pilot_disp": 300, "her": 300},
+    # the target's budget was fixed from SAC+HER's runs alone, before any HER+PILoT run (zoo_runs/maze-car/README.md);
+    # the source's: Zero-shot Ant-Maze's Maze2D source, which made the shipped plain Maze2D planner
+    "cpu": {"source": 20_000, "pilot": 20_000, "pilot_disp": 20_000, "her": 20_000},
+}
+
 CHALLENGES: dict[str, Challenge] = {
     challenge.name: challenge
     for challenge in (
@@ -272,18 +289,10 @@ CHALLENGES: dict[str, Challenge] = {
         ),
         Challenge(
             "maze-car",
-            "UDPO on 2D-Maze (a point) -> distilled goal planner -> HER + bonus on Maze-Car (a car-like agent in the "
-            "same maze: speed and turn rate), vs SAC+HER",
+            MAZE_CAR_DESCRIPTION,
             "Pilot/Maze2DCar-v0",
-            # uniform starts and goals on both tasks: the planner knows the maze everywhere, and the car's 50-step
-            # episodes cannot join the two ends of the U (about 24 units at 0.5 a step, and turns)
-            _bonus_stages("Pilot/Maze2D-v0", "Pilot/Maze2DCar-v0", {"goal_distribution": "uniform"}),
-            steps={
-                "smoke": {"source": 300, "pilot": 300, "pilot_disp": 300, "her": 300},
-                # the target's budget was fixed from SAC+HER's runs alone, before any HER+PILoT run
-                # (zoo_runs/maze-car/README.md); the source's 12k steps: UDPO reached 1.0 on Maze2D at 12k
-                "cpu": {"source": 12_000, "pilot": 20_000, "pilot_disp": 20_000, "her": 20_000},
-            },
+            MAZE_CAR_STAGES,
+            steps=MAZE_CAR_STEPS,
             fast_hyperparams=MAZE_CAR_FAST,
         ),
         Challenge(
@@ -334,6 +343,8 @@ CHALLENGES: dict[str, Challenge] = {
 
 #: The controller and planners shipped for Zero-shot Ant-Maze (see the README there for how each was made).
 SHIPPED_DIR = REPO_DIR / "zoo_runs" / "zero-shot-ant-maze" / "controller"
+#: The Maze2D goal planner Maze-Car's ``--reuse-shipped`` run shares between its seeds.
+MAZE_CAR_PLANNER = SHIPPED_DIR / "maze2d_planner.pt"
 #: ``--reuse-shipped``: challenges that evaluate the shipped models instead of training them, by challenge name.
 REUSE_SHIPPED: dict[str, Challenge] = {
     "zero-shot-ant-maze": Challenge(
@@ -359,5 +370,17 @@ REUSE_SHIPPED: dict[str, Challenge] = {
             ),
         ),
         steps={"smoke": {"pilot": 50}},  # smoke: 50-step episodes
-    )
+    ),
+    # one source for every seed: the plain Maze2D planner shipped with Zero-shot Ant-Maze (UDPO on Maze2D, uniform starts
+    # and goals, 20k steps, seed 0: this challenge's source recipe at seed 0)
+    "maze-car": Challenge(
+        "maze-car-shipped",
+        MAZE_CAR_DESCRIPTION + "; one shipped Maze2D planner for every seed",
+        "Pilot/Maze2DCar-v0",
+        (Shipped("distill", MAZE_CAR_PLANNER), *MAZE_CAR_STAGES[2:]),
+        steps={
+            budget: {name: steps[name] for name in ("pilot", "pilot_disp", "her")} for budget, steps in MAZE_CAR_STEPS.items()
+        },
+        fast_hyperparams=MAZE_CAR_FAST,
+    ),
 }
