@@ -62,3 +62,8 @@ def test_guided_ant_maze_gif(tmp_path: Path, capsys: pytest.CaptureFixture[str])
         second = np.asarray(gif.convert("RGB"), dtype=float)
     green = (second[..., 1] > 150) & (second[..., 0] < 100) & (second[..., 2] < 100)
     assert green.any()  # the landmark's marker is drawn
+
+
+def test_record_video_of_a_task_that_does_not_render() -> None:
+    with pytest.raises(SystemExit, match=r"renders rgb_array frames, Pilot/Maze2D-v0 does not\. .*Pilot/Reacher-v0"):
+        zoo.main(["record_video", "--algo", "udpo", "--env", "Pilot/Maze2D-v0", "-f", "logs"])

@@ -44,6 +44,7 @@ import gymnasium as gym
 import optuna
 import rl_zoo3
 import yaml
+from gymnasium.envs.registration import EnvSpec, load_env_creator
 
 from sb3_pilot.envs import register_envs
 from sb3_pilot.experiments.evaluation import GoalEvalCallback
@@ -175,6 +176,26 @@ def _plot_train(argv: list[str], prog: str) -> None:
         print(f"Saved {args.output}")
 
 
+def _renders(spec: EnvSpec) -> bool:
+    """Whether a registered task renders ``rgb_array`` frames (as its class's ``metadata`` says; True if unknown)."""
+    creator = load_env_creator(spec.entry_point) if isinstance(spec.entry_point, str) else spec.entry_point
+    metadata = getattr(creator, "metadata", None)
+    return not isinstance(metadata, dict) or "rgb_array" in metadata.get("render_modes", [])
+
+
+def _check_renders(argv: list[str]) -> None:
+    """Refuse, before loading anything, a ``record_video`` of a task that cannot render ``rgb_array`` frames."""
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument("--env", default="CartPole-v1")
+    env_id = parser.parse_known_args(argv)[0].env
+    if env_id in gym.registry and not _renders(gym.spec(env_id)):
+        renders = [name for name, spec in gym.registry.items() if name.startswith("Pilot/") and _renders(spec)]
+        raise SystemExit(
+            f"record_video needs a task that renders rgb_array frames, {env_id} does not. "
+            f"Pilot/ tasks that do: {', '.join(renders)}."
+        )
+
+
 @contextmanager
 def _ffmpeg_command() -> Iterator[None]:
     """
@@ -250,6 +271,7 @@ def main(argv: list[str] | None = None) -> None:
         sys.argv = [prog, *zoo_argv]
         enjoy()
     elif command == "record_video":  # a script, without a function to call
+        _check_renders(zoo_argv)
         sys.argv = [prog, *zoo_argv]
         runpy.run_module("rl_zoo3.record_video", run_name="__main__")
     elif command == "record_training":
