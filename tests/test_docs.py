@@ -4,6 +4,7 @@ the order written (the blocks of one page share a namespace, as a reader's sessi
 built with warnings as errors by ``make test`` / ``make docs`` (``sphinx-build -W``), not here.
 """
 
+import importlib.util
 import re
 import textwrap
 from pathlib import Path
@@ -30,6 +31,22 @@ PAGES = sorted(
     for path in [*DOCS.rglob("*.md"), *DOCS.rglob("*.rst"), ROOT / "README.md"]
     if "_build" not in path.parts and python_blocks(path)
 )
+
+
+COMMANDS = re.compile(r"python -m (sb3_pilot[a-z0-9_.]*)")  # lower case: not a placeholder such as ...X
+CONF_FILES = re.compile(r"--conf-file (?:hyperparams/)?([\w/]+\.yml)")
+
+
+def test_commands_name_what_exists() -> None:
+    """Every ``python -m sb3_pilot...`` module and ``--conf-file`` named in the docs, the README and the results folders'
+    READMEs exists (commands stay true after moves)."""
+    texts = [path.read_text() for path in [*DOCS.rglob("*.md"), *DOCS.rglob("*.rst"), *ROOT.glob("zoo_runs/**/README.md")]]
+    texts = [*texts, (ROOT / "README.md").read_text()]
+    modules = {module.rstrip(".") for text in texts for module in COMMANDS.findall(text)}
+    conf_files = {name for text in texts for name in CONF_FILES.findall(text)}
+    assert "sb3_pilot.experiments.challenges" in modules and "cpu/udpo.yml" in conf_files
+    assert [module for module in sorted(modules) if importlib.util.find_spec(module) is None] == []
+    assert [name for name in sorted(conf_files) if not (ROOT / "hyperparams" / name).is_file()] == []
 
 
 def test_extraction_finds_the_pages() -> None:
