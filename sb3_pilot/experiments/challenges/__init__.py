@@ -1,5 +1,5 @@
 """
-The paper's four transfer challenges as runners over the RL Zoo: ``python -m sb3_pilot.experiments.challenges NAME``.
+The paper's transfer challenges (and maze-car) as runners over the RL Zoo: ``python -m sb3_pilot.experiments.challenges NAME``.
 
 Each challenge chains zoo training runs (``python -m sb3_pilot.experiments.zoo train``), distillation and guidance stages for
 every seed, resumes what already finished, and writes ``<root>/<challenge>/summary.json``. Each stage runs in a
