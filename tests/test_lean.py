@@ -1,7 +1,7 @@
 """
 The lean update (:mod:`sb3_pilot.common.lean`): the ensemble critic computes SB3's critics, a ``LeanSAC`` gradient
 step gives SB3's ``SAC`` numbers from the same weights, batch and random draws, and models saved with SB3's twin
-critics (SB3's SAC, UDPO of sb3-pilot <= 0.2) load and resume.
+critics (SB3's SAC, UDPO of sb3-pilot <= 0.2) load and resume; HER batches are SB3's.
 """
 
 import copy
@@ -14,7 +14,9 @@ from stable_baselines3 import SAC, HerReplayBuffer
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.policies import ContinuousCritic
 from stable_baselines3.common.torch_layers import FlattenExtractor
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+from sb3_pilot.common.buffers import LeanHerReplayBuffer
 from sb3_pilot.common.critics import EnsembleCritic
 from sb3_pilot.sac import LeanSAC
 from sb3_pilot.udpo import UDPO
@@ -134,3 +136,28 @@ def _as_sb3_critics(params: dict, n_critics: int) -> dict:
     n_params = sum(key.startswith("critic.qf") for key in policy)
     params["critic.optimizer"]["param_groups"][0]["params"] = list(range(n_params))
     return params
+
+
+@pytest.mark.parametrize("copy_info_dict", [False, True])
+def test_lean_her_samples_are_sb3_her_samples(copy_info_dict: bool) -> None:
+    """Same stored transitions, same random state: the same batch as SB3's HerReplayBuffer, VecNormalize included."""
+    env = VecNormalize(DummyVecEnv([PointGoalEnv, PointGoalEnv]))
+    her = {**HER, "replay_buffer_kwargs": {"n_sampled_goal": 4, "copy_info_dict": copy_info_dict}}
+    sac = SAC("MultiInputPolicy", env, **small(**her))
+    assert type(sac.replay_buffer) is HerReplayBuffer
+    sac.learn(300)
+    lean = copy.copy(sac.replay_buffer)
+    lean.__class__ = LeanHerReplayBuffer
+    lean.set_env(sac.replay_buffer.env)  # not copied: HerReplayBuffer.__getstate__ drops it
+    samples = []
+    for buffer in (sac.replay_buffer, lean):
+        np.random.seed(3)
+        samples.append(buffer.sample(64, env=env))
+    for name, expected in samples[0]._asdict().items():
+        actual = samples[1]._asdict()[name]
+        if isinstance(expected, dict):
+            for key in expected:
+                th.testing.assert_close(actual[key], expected[key], msg=f"{name}[{key}]")
+        elif expected is not None:
+            th.testing.assert_close(actual, expected, msg=name)
+    assert LeanSAC("MultiInputPolicy", PointGoalEnv(), **small(**HER)).replay_buffer_class is LeanHerReplayBuffer

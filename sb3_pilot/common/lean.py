@@ -1,18 +1,21 @@
 """
 The lean update shared by UDPO and :class:`~sb3_pilot.sac.LeanSAC`: SAC's temperature, critic and target-network steps
-with the critics as one ensemble, fused Adam, one ``foreach`` target update, and the losses read from the device once
-per ``train()`` call. Same losses and same numbers as SB3's ``SAC.train`` (up to float rounding), fewer kernels and
-host reads per gradient step.
+with the critics as one ensemble, fused Adam, one ``foreach`` target update, the losses read from the device once per
+``train()`` call, and HER batches gathered in one pass (:class:`~sb3_pilot.common.buffers.LeanHerReplayBuffer`). Same
+losses and same numbers as SB3's ``SAC.train`` (up to float rounding), fewer kernels and host reads per gradient step.
 """
 
 from typing import Any
 
 import torch as th
+from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.policies import BaseModel
 from stable_baselines3.common.save_util import load_from_zip_file
 from stable_baselines3.common.type_aliases import PyTorchObs
+from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
 
+from sb3_pilot.common.buffers import LeanHerReplayBuffer
 from sb3_pilot.common.critics import EnsembleCritic, stack_sb3_critic_parameters
 
 
@@ -102,6 +105,12 @@ class LeanSACSteps:
     batch_norm_stats_target: list[th.Tensor]
     _critic_parameters: list[th.Tensor]
     _critic_target_parameters: list[th.Tensor]
+    replay_buffer_class: type[ReplayBuffer] | None
+
+    def _use_lean_her(self) -> None:
+        """Sample HER batches with :class:`~sb3_pilot.common.buffers.LeanHerReplayBuffer` where SB3's is asked for."""
+        if self.replay_buffer_class is HerReplayBuffer:
+            self.replay_buffer_class = LeanHerReplayBuffer
 
     def _entropy_coef_step(self, log_prob: th.Tensor, losses: LossRecorder) -> th.Tensor:
         """

@@ -47,6 +47,11 @@ class LeanSACPolicy(SACPolicy):
             **kwargs,
         )
 
+    def set_training_mode(self, mode: bool) -> None:
+        """SB3's switch of the actor and critic's mode, skipped when already in that mode (SB3 calls it every step)."""
+        if mode != self.training:
+            super().set_training_mode(mode)
+
     def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None) -> EnsembleCritic:
         critic_kwargs = self._update_features_extractor(self.critic_kwargs, features_extractor)
         return EnsembleCritic(**critic_kwargs).to(self.device)

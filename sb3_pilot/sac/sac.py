@@ -30,7 +30,8 @@ class LeanSAC(LeanSACSteps, SAC):
     the actor loss computed for the actor only, one ``foreach`` target update and no host read per step (the losses
     are read once per ``train()`` call). The numbers of each step are SB3's up to float rounding (tested).
 
-    SB3's own SAC policy classes are replaced by their lean twins (:mod:`sb3_pilot.sac.policies`), so models saved by
+    SB3's ``HerReplayBuffer`` is replaced by :class:`~sb3_pilot.common.buffers.LeanHerReplayBuffer` (same samples),
+    and SB3's own SAC policy classes by their lean twins (:mod:`sb3_pilot.sac.policies`), so models saved by
     SB3's ``SAC`` load into it (their twin critics are stacked on load). Other ``SACPolicy`` subclasses (whose critic
     is not an ensemble) work too, with the other cuts.
 
@@ -47,6 +48,7 @@ class LeanSAC(LeanSACSteps, SAC):
     def _setup_model(self) -> None:
         # here rather than in __init__: SB3's load() sets the saved policy class after __init__
         self.policy_class = LEAN_POLICIES.get(self.policy_class, self.policy_class)
+        self._use_lean_her()
         super()._setup_model()
 
     def _create_aliases(self) -> None:

@@ -8,8 +8,8 @@ from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
-from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
 
+from sb3_pilot.common.buffers import LeanHerReplayBuffer
 from sb3_pilot.common.utils import check_number
 from sb3_pilot.distill import GoalPlanner
 
@@ -153,7 +153,7 @@ class _StoredPreviousAchievedGoals:
         pass
 
 
-class PilotHerReplayBuffer(HerReplayBuffer):
+class PilotHerReplayBuffer(LeanHerReplayBuffer):
     """
     ``HerReplayBuffer`` for envs wrapped in :class:`PilotBonusWrapper`: when it relabels a transition ``s -> s'``,
     ``compute_reward`` receives ``info = {"previous_achieved_goal": phi(s)}`` (a batch), read from the stored

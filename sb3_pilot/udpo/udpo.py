@@ -254,6 +254,7 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         self.inverse_dynamics_lr_schedule = FloatSchedule(
             self.learning_rate if self.inverse_dynamics_learning_rate is None else self.inverse_dynamics_learning_rate
         )
+        self._use_lean_her()
         self.policy_kwargs = {
             **self.policy_kwargs,
             "planner_lr_schedule": self.planner_lr_schedule,
