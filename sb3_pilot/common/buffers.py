@@ -8,11 +8,26 @@ from stable_baselines3.common.vec_env import VecNormalize
 from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
 
 
+def normalize_in_place(obs: dict[str, np.ndarray], env: VecNormalize | None) -> None:
+    """
+    ``VecNormalize.normalize_obs`` on a dict of arrays that the caller owns, without its deep copy of the dict.
+
+    :param obs: the observations, normalised in place (their normalised keys become float32)
+    :param env: the VecNormalize (None: nothing to do)
+    """
+    if env is None or not env.norm_obs:
+        return
+    assert isinstance(env.obs_rms, dict) and env.norm_obs_keys is not None
+    for key in env.norm_obs_keys:
+        obs[key] = env._normalize_obs(obs[key], env.obs_rms[key]).astype(np.float32)
+
+
 class LeanHerReplayBuffer(HerReplayBuffer):
     """
     SB3's ``HerReplayBuffer`` (same arguments, same storage, same samples for the same random state) whose ``sample``
-    gathers the real and the relabelled transitions of a batch in one pass: one index gather, one normalisation and
-    one tensor copy per observation key, where SB3's makes two of each and concatenates them. The batch holds the real
+    gathers the real and the relabelled transitions of a batch in one pass: one index gather, one in-place
+    normalisation (no deep copy) and one tensor copy per observation key, where SB3's makes two of each and concatenates
+    them. The batch holds the real
     transitions first, then the relabelled ones, as SB3's does.
     """
 
@@ -54,13 +69,12 @@ class LeanHerReplayBuffer(HerReplayBuffer):
             rewards[virtual] = self.env.env_method(
                 "compute_reward", next_obs["achieved_goal"][virtual], new_goals, infos, indices=[0]
             )[0]
-        obs_ = self._normalize_obs(obs, env)
-        next_obs_ = self._normalize_obs(next_obs, env)
-        assert isinstance(obs_, dict) and isinstance(next_obs_, dict)
+        normalize_in_place(obs, env)
+        normalize_in_place(next_obs, env)
         return DictReplayBufferSamples(
-            observations={key: self.to_torch(values) for key, values in obs_.items()},
+            observations={key: self.to_torch(values) for key, values in obs.items()},
             actions=self.to_torch(self.actions[batch_indices, env_indices]),
-            next_observations={key: self.to_torch(values) for key, values in next_obs_.items()},
+            next_observations={key: self.to_torch(values) for key, values in next_obs.items()},
             # dones that are not timeouts (SB3's handle_timeout_termination)
             dones=self.to_torch(
                 self.dones[batch_indices, env_indices] * (1 - self.timeouts[batch_indices, env_indices])

@@ -46,8 +46,24 @@ def squashed_gaussian_log_prob(gaussian: th.Tensor, mean: th.Tensor, log_std: th
     :param log_std: its log standard deviation, same shape
     :return: log-probabilities, shape (...)
     """
-    tanh_log_det = 2 * (math.log(2) - gaussian - F.softplus(-2 * gaussian))  # log(1 - tanh(u)^2), stable
-    return gaussian_log_prob(gaussian, mean, log_std) - tanh_log_det.sum(dim=-1)
+    return gaussian_log_prob(gaussian, mean, log_std) - tanh_log_det(gaussian)
+
+
+def tanh_log_det(gaussian: th.Tensor) -> th.Tensor:
+    """``sum log(1 - tanh(u)^2)`` over the last dimension, computed stably as ``2 (log 2 - u - softplus(-2u))``."""
+    return (2 * (math.log(2) - gaussian - F.softplus(-2 * gaussian))).sum(dim=-1)
+
+
+def reparameterised_log_prob(noise: th.Tensor, log_std: th.Tensor) -> th.Tensor:
+    """
+    Log-density of a reparameterised diagonal Gaussian sample ``mean + exp(log_std) * noise``, summed over the last
+    dimension: ``gaussian_log_prob`` at that sample, from the noise itself (``(x - mean) / std = noise``).
+
+    :param noise: the standard normal draws, shape (..., dim)
+    :param log_std: log standard deviations, same shape
+    :return: log-densities, shape (...)
+    """
+    return (-0.5 * noise**2 - log_std - _HALF_LOG_2PI).sum(dim=-1)
 
 
 def squashed_gaussian_sample(mean: th.Tensor, log_std: th.Tensor, deterministic: bool = False) -> tuple[th.Tensor, th.Tensor]:
@@ -59,5 +75,8 @@ def squashed_gaussian_sample(mean: th.Tensor, log_std: th.Tensor, deterministic:
     :param deterministic: return ``tanh(mean)`` instead of a sample
     :return: the squashed sample and its log-probability (shape ``(batch,)``)
     """
-    gaussian = mean if deterministic else mean + th.randn_like(mean) * th.exp(log_std)
-    return th.tanh(gaussian), squashed_gaussian_log_prob(gaussian, mean, log_std)
+    if deterministic:
+        return th.tanh(mean), squashed_gaussian_log_prob(mean, mean, log_std)
+    noise = th.randn_like(mean)
+    gaussian = mean + noise * th.exp(log_std)
+    return th.tanh(gaussian), reparameterised_log_prob(noise, log_std) - tanh_log_det(gaussian)

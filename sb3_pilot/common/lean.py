@@ -123,11 +123,12 @@ class LeanSACSteps:
         if self.ent_coef_optimizer is None or self.log_ent_coef is None:
             ent_coef = self.ent_coef_tensor
         else:
-            ent_coef = th.exp(self.log_ent_coef.detach())
-            ent_coef_loss = -(self.log_ent_coef * (log_prob + self.target_entropy).detach()).mean()
-            losses.add("ent_coef_loss", ent_coef_loss)
-            self.ent_coef_optimizer.zero_grad()
-            ent_coef_loss.backward()
+            log_ent_coef = self.log_ent_coef.detach()
+            ent_coef = th.exp(log_ent_coef)
+            # the loss is linear in log(alpha): its gradient -mean(log pi + target_entropy) is set, not backpropagated
+            entropy_gap = (log_prob.detach() + self.target_entropy).mean()
+            losses.add("ent_coef_loss", -log_ent_coef * entropy_gap)
+            self.log_ent_coef.grad = -entropy_gap.reshape(self.log_ent_coef.shape)
             self.ent_coef_optimizer.step()
         losses.add("ent_coef", ent_coef)
         return ent_coef

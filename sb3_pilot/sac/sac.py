@@ -8,7 +8,7 @@ from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import PyTorchObs
 from stable_baselines3.sac import policies as sac_policies
 
-from sb3_pilot.common.distributions import gaussian_log_prob
+from sb3_pilot.common.distributions import reparameterised_log_prob
 from sb3_pilot.common.lean import LeanSACSteps, LossRecorder, q_values
 from sb3_pilot.sac.policies import CnnPolicy, LeanSACPolicy, MlpPolicy, MultiInputPolicy
 
@@ -68,9 +68,9 @@ class LeanSAC(LeanSACSteps, SAC):
         if self.use_sde:
             return self.actor.action_log_prob(observations)
         mean_actions, log_std, _ = self.actor.get_action_dist_params(observations)
-        gaussian_actions = mean_actions + th.randn_like(mean_actions) * th.exp(log_std)
-        actions = th.tanh(gaussian_actions)
-        log_prob = gaussian_log_prob(gaussian_actions, mean_actions, log_std)
+        noise = th.randn_like(mean_actions)
+        actions = th.tanh(mean_actions + noise * th.exp(log_std))
+        log_prob = reparameterised_log_prob(noise, log_std)
         return actions, log_prob - th.log(1 - actions**2 + SB3_SQUASH_EPSILON).sum(dim=1)
 
     def train(self, gradient_steps: int, batch_size: int = 64) -> None:
