@@ -144,6 +144,31 @@ def interval(scores: np.ndarray) -> dict[str, float]:
     return {"iqm": float(point["m"][0]), "low": float(bounds["m"][0, 0]), "high": float(bounds["m"][1, 0])}
 
 
+def difference(her: np.ndarray, mega: np.ndarray, reps: int = 5000) -> dict[str, float]:
+    """
+    :param her: SAC + HER's scores, one per seed
+    :param mega: SAC + HER + MEGA's scores, one per seed
+    :return: the IQM difference MEGA - HER and its 95% interval, from a bootstrap that resamples each method's seeds
+        independently (stratified, as ``rliable``'s; computed here, since rliable's intervals are per method)
+    """
+    from rliable.metrics import aggregate_iqm
+
+    rng = np.random.default_rng(0)
+    draws = [aggregate_iqm(rng.choice(mega, len(mega))) - aggregate_iqm(rng.choice(her, len(her))) for _ in range(reps)]
+    low, high = np.percentile(draws, [2.5, 97.5])
+    return {"iqm": float(aggregate_iqm(mega) - aggregate_iqm(her)), "low": float(low), "high": float(high)}
+
+
+def per_seed_scores(runs: list[dict[str, Any]], steps: int) -> dict[str, np.ndarray]:
+    """The scores compared, one per run (steps never reached counted as ``steps``)."""
+    coverage = np.array([r["coverage"] for r in runs])
+    scores = {"final_coverage": coverage[:, -1], "mean_coverage_over_training": coverage.mean(axis=1)}
+    for key in ("first_step_in_goal_cell", "first_eval_success_50"):
+        scores[key] = np.array([steps if r[key] is None else r[key] for r in runs], dtype=float)
+    scores["final_eval_success"] = np.array([r["eval_success"][-1] for r in runs])
+    return scores
+
+
 def summarize(runs: list[dict[str, Any]], steps: int) -> dict[str, Any]:
     """Per method: the IQM coverage curve with intervals, and the summary numbers (unreached counted as ``steps``)."""
     summary: dict[str, Any] = {}
@@ -156,13 +181,9 @@ def summarize(runs: list[dict[str, Any]], steps: int) -> dict[str, Any]:
             "seeds": [r["seed"] for r in mine],
             "steps": mine[0]["steps"],
             "coverage_curve": [interval(coverage[:, k]) for k in range(coverage.shape[1])],
-            "final_coverage": interval(coverage[:, -1]),
-            "mean_coverage_over_training": interval(coverage.mean(axis=1)),
         }
-        for key in ("first_step_in_goal_cell", "first_eval_success_50"):
-            values = np.array([steps if r[key] is None else r[key] for r in mine], dtype=float)
-            summary[method][key] = {**interval(values), "per_seed": [r[key] for r in mine]}
-        summary[method]["final_eval_success"] = interval(np.array([r["eval_success"][-1] for r in mine]))
+        for key, scores in per_seed_scores(mine, steps).items():
+            summary[method][key] = {**interval(scores), "per_seed": [round(float(score), 4) for score in scores]}
         summary[method]["wall_s"] = [r["wall_s"] for r in mine]
     return summary
 
@@ -220,7 +241,11 @@ def main() -> None:
     summary = summarize(runs, args.steps)
     for method, result in summary.items():
         print(method, {key: value for key, value in result.items() if key != "coverage_curve"}, flush=True)
-    (args.out / "coverage.json").write_text(json.dumps({"command": command, "env": ENV_ID, "methods": summary}, indent=1))
+    her, mega = (per_seed_scores([r for r in runs if r["method"] == method], args.steps) for method in METHODS)
+    differences = {key: difference(her[key], mega[key]) for key in her}
+    print("MEGA - HER (IQM, 95% interval):", differences, flush=True)
+    record = {"command": command, "env": ENV_ID, "methods": summary, "mega_minus_her": differences}
+    (args.out / "coverage.json").write_text(json.dumps(record, indent=1))
     plot(summary, args.out / "coverage.png")
 
 
