@@ -9,6 +9,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+from goal_envs import PointGoalEnv
 from gymnasium import spaces
 from scipy.stats import multivariate_normal
 from stable_baselines3 import PPO, SAC, HerReplayBuffer
@@ -17,7 +18,6 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnvWrapper, VecFram
 
 from sb3_pilot import UDPO, GoalPlanner, PilotBonusWrapper, PilotHerReplayBuffer
 from sb3_pilot.baselines import KernelDensity, MegaCallback, MegaGoalWrapper
-from tests.goal_envs import PointGoalEnv
 
 MAZE = "Pilot/Maze2D-v0"
 FAST = {
