@@ -14,6 +14,7 @@ from stable_baselines3.common.policies import BaseModel
 from stable_baselines3.common.save_util import load_from_zip_file
 from stable_baselines3.common.type_aliases import PyTorchObs
 from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
+from torch import nn
 
 from sb3_pilot.common.buffers import LeanHerReplayBuffer
 from sb3_pilot.common.critics import EnsembleCritic, stack_sb3_critic_parameters
@@ -46,6 +47,18 @@ def lean_optimizer_kwargs(
     if issubclass(optimizer_class, (th.optim.Adam, th.optim.AdamW)) and not {"fused", "foreach"} & set(optimizer_kwargs):
         optimizer_kwargs["fused"] = True
     return optimizer_kwargs
+
+
+def set_training_flags(modules: list[nn.Module], mode: bool) -> None:
+    """
+    What ``nn.Module.train(mode)`` does to each module of a flat list, without its per-call recursion and
+    ``__setattr__`` checks: SB3 switches the policy's mode twice per env step when it trains every step.
+
+    :param modules: every module to switch (a policy and its submodules, but not its target networks)
+    :param mode: True for training mode
+    """
+    for module in modules:
+        object.__setattr__(module, "training", mode)
 
 
 class LossRecorder:

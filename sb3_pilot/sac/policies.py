@@ -9,7 +9,7 @@ from stable_baselines3.common.type_aliases import Schedule
 from stable_baselines3.sac.policies import SACPolicy
 
 from sb3_pilot.common.critics import EnsembleCritic
-from sb3_pilot.common.lean import lean_optimizer_kwargs
+from sb3_pilot.common.lean import lean_optimizer_kwargs, set_training_flags
 
 
 class LeanSACPolicy(SACPolicy):
@@ -47,10 +47,14 @@ class LeanSACPolicy(SACPolicy):
             **kwargs,
         )
 
+    def _build(self, lr_schedule: Schedule) -> None:
+        super()._build(lr_schedule)
+        self._mode_switched_modules = [self, *self.actor.modules(), *self.critic.modules()]
+
     def set_training_mode(self, mode: bool) -> None:
-        """SB3's switch of the actor and critic's mode, skipped when already in that mode (SB3 calls it every step)."""
+        """SB3's switch of the actor's and the critic's mode (the target critic stays in evaluation mode), cheaply."""
         if mode != self.training:
-            super().set_training_mode(mode)
+            set_training_flags(self._mode_switched_modules, mode)
 
     def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None) -> EnsembleCritic:
         critic_kwargs = self._update_features_extractor(self.critic_kwargs, features_extractor)

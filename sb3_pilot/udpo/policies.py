@@ -25,7 +25,7 @@ from sb3_pilot.common.distributions import (
     squashed_gaussian_log_prob,
     squashed_gaussian_sample,
 )
-from sb3_pilot.common.lean import lean_optimizer_kwargs
+from sb3_pilot.common.lean import lean_optimizer_kwargs, set_training_flags
 
 #: Planner states are observations without this key (the target goal ``g`` conditions ``h``, it is not planned).
 DESIRED_GOAL = "desired_goal"
@@ -567,9 +567,7 @@ class UDPOPolicy(BasePolicy):
         """
         if mode == self.training:
             return
-        # What nn.Module.train(mode) does to each module, without its per-call recursion and __setattr__ checks
-        for module in self._mode_switched_modules:
-            object.__setattr__(module, "training", mode)
+        set_training_flags(self._mode_switched_modules, mode)
 
 
 MlpPolicy = UDPOPolicy
