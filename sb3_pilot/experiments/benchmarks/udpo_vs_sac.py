@@ -2,8 +2,9 @@
 Speed and learning of UDPO + HER and the package's ``LeanSAC`` + HER against SB3's ``SAC`` + HER as shipped: env
 steps/s, their ratios to SB3's SAC, and eval success every ``--eval-every`` steps.
 
-The algorithms are trained alternately, chunk by chunk, in the same process, so that machine noise hits them alike;
-``steps_per_s`` counts training time only (not evaluation). Tasks (``--task``):
+The algorithms are trained alternately, ``--chunk`` env steps each in turn (250 by default: the noise of a shared machine
+changes within seconds), in the same process, so that machine noise hits them alike; ``steps_per_s`` counts training
+time only (not evaluation). Tasks (``--task``):
 
 - ``fetch-reach``: gymnasium-robotics' ``FetchReach-v4`` with RL-Zoo's settings (64x64 nets, VecNormalize, gamma
   0.95, lr 1e-3, batch 256, HER future x4, 1000 warm-up steps); UDPO with Delta 200 (50 refit steps, lr 1e-3);
@@ -128,6 +129,7 @@ def main() -> None:
     parser.add_argument("--algos", nargs="+", choices=tuple(ALGOS), default=list(ALGOS))
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument("--steps", type=int, default=6000)
+    parser.add_argument("--chunk", type=int, default=250, help="env steps each algorithm trains in turn")
     parser.add_argument("--eval-every", type=int, default=2000)
     parser.add_argument("--eval-episodes", type=int, default=20)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1: robust to a busy 2-core machine)")
@@ -144,11 +146,16 @@ def main() -> None:
     for seed in args.seeds:
         models = {algo: make_model(algo, task, seed, udpo_kwargs) for algo in args.algos}
         train_seconds = dict.fromkeys(models, 0.0)
+        next_eval = args.eval_every
         while models["sac"].num_timesteps < args.steps:
             for algo, model in models.items():
                 start = time.perf_counter()
-                model.learn(args.eval_every, reset_num_timesteps=False)
+                model.learn(args.chunk, reset_num_timesteps=False)
                 train_seconds[algo] += time.perf_counter() - start
+            if models["sac"].num_timesteps < next_eval:
+                continue
+            next_eval += args.eval_every
+            for algo, model in models.items():
                 success = eval_success(model, task.env_id, args.eval_episodes, seed)
                 print(
                     f"seed={seed} algo={algo} steps={model.num_timesteps} eval_success={success:.2f} "
