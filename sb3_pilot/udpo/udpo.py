@@ -45,7 +45,9 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
 
     The goal-conditioned policy is decoupled as ``pi(a|s,g) = E_{s' ~ h(s'|s,g)} [I(a|s,s')]``:
     a state planner ``h`` (``policy.state_planner``) and an inverse dynamics model ``I``
-    (``policy.inverse_dynamics``). Twin Q critics and the entropy temperature are trained as in SAC.
+    (``policy.inverse_dynamics``). Twin Q critics and the entropy temperature are trained as in SAC, with the lean steps
+    of :mod:`sb3_pilot.common.lean` that :class:`~sb3_pilot.sac.LeanSAC` uses too (one ensemble for the critics, fused
+    Adam, HER batches gathered in one pass, losses read once per ``train()``).
 
     - ``I`` is fitted by maximum likelihood on buffer transitions ``(s, s', a)`` every ``inverse_dynamics_interval``
       gradient steps (``Delta``) and held fixed in between: the actor loss reaches only the planner.
