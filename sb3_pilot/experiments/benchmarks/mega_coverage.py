@@ -12,7 +12,7 @@ Measured per run, from the training transitions (the replay buffer, in order) an
 - evaluation success on the env's goals (``--eval-episodes`` deterministic episodes every ``--every`` steps), and the
   first step it reaches 50%.
 
-Each run is written to ``<out>/runs/<method>_seed<k>.json`` when it ends (a rerun skips finished runs); then
+Each run is written to ``<out>/seeds/<method>_seed<k>.json`` when it ends (a rerun skips finished runs); then
 ``coverage.json`` (interquartile means with stratified-bootstrap 95% intervals from ``rliable``) and
 ``coverage.png``. One torch thread; runs go one after the other.
 """
@@ -225,10 +225,10 @@ def main() -> None:
     for seed in args.seeds:
         for method in METHODS:
             name = f"{method.replace('+', '_')}_seed{seed}"
-            path = args.out / "runs" / f"{name}.json"
+            path = args.out / "seeds" / f"{name}.json"
             if not path.exists():
                 path.parent.mkdir(parents=True, exist_ok=True)
-                result = run(method, seed, args.steps, args.every, args.eval_episodes, args.out / "runs" / f"{name}_eval")
+                result = run(method, seed, args.steps, args.every, args.eval_episodes, args.out / "seeds" / f"{name}_eval")
                 path.write_text(json.dumps(result, indent=1))
             result = json.loads(path.read_text())
             print(
