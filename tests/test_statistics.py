@@ -63,6 +63,7 @@ def test_method_statistics_and_pointwise_iqm() -> None:
     center, interval = pointwise_iqm(np.array([run["success_rate"] for run in runs]), reps=REPS)
     assert center.shape == (len(STEPS),) and interval.shape == (2, len(STEPS))
     assert np.all(interval[0] <= center + 1e-9) and np.all(center <= interval[1] + 1e-9)
+    assert method_statistics(runs, reps=REPS) == stats  # the bootstrap is seeded: the same intervals every time
     with pytest.raises(ValueError, match="reps"):
         method_statistics(runs, reps=0)
     with pytest.raises(ValueError, match="No runs"):

@@ -71,11 +71,18 @@ def _estimates(data: Any, func: Callable[..., np.ndarray], seed: int, reps: int)
     """
     if reps < 1:
         raise ValueError(f"reps must be a positive number of bootstrap replications, got {reps!r}.")
-    with warnings.catch_warnings():  # rliable passes arch a RandomState, which arch 7 deprecates
-        warnings.simplefilter("ignore", FutureWarning)
-        points, intervals = library.get_interval_estimates(
-            {"x": data}, func, reps=reps, confidence_interval_size=CONFIDENCE, random_state=np.random.RandomState(seed)
-        )
+    # rliable's StratifiedBootstrap draws its indices from NumPy's global generator (np.random.choice), whatever
+    # random_state it is given: seed that one for the call, and put its state back afterwards
+    state = np.random.get_state()
+    np.random.seed(seed)
+    try:
+        with warnings.catch_warnings():  # rliable passes arch a RandomState, which arch 7 deprecates
+            warnings.simplefilter("ignore", FutureWarning)
+            points, intervals = library.get_interval_estimates(
+                {"x": data}, func, reps=reps, confidence_interval_size=CONFIDENCE, random_state=np.random.RandomState(seed)
+            )
+    finally:
+        np.random.set_state(state)
     return points["x"], intervals["x"]
 
 
