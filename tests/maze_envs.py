@@ -116,6 +116,23 @@ class WallMazeEnv(gym.Env):
 WALL_START, WALL_GOAL = np.array([-0.5, -0.6], dtype=np.float32), np.array([0.5, -0.6], dtype=np.float32)
 
 
+def wall_detour_end(model: UDPO) -> tuple[bool, np.ndarray]:
+    """
+    One deterministic episode of ``model`` from :data:`WALL_START` to :data:`WALL_GOAL` on :class:`WallMazeEnv`:
+    whether it reached the goal (round the wall), and where it ended.
+
+    Seeds of the wall test's teacher (``python -c "from tests.maze_envs import *; [print(s, wall_detour_end(train_udpo(
+    WallMazeEnv, 20_000, seed=s, planner_coef=0.0))) for s in range(4)]"``).
+    """
+    env = WallMazeEnv()
+    obs, _ = env.reset(options={"start": WALL_START, "goal": WALL_GOAL})
+    for _ in range(env.max_episode_steps):
+        obs, _, _, _, info = env.step(model.predict(obs, deterministic=True)[0])
+        if info["is_success"]:
+            return True, env.position
+    return False, env.position
+
+
 def wall_landmark_path(planner: GoalPlanner, snap: bool | None = None) -> np.ndarray:
     """A planner's 30 landmarks from :data:`WALL_START` to :data:`WALL_GOAL`, the start first."""
     return np.concatenate([WALL_START[None], planner.plan(WALL_START, WALL_GOAL, horizon=30, snap=snap)])

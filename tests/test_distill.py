@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch as th
 from goal_envs import PointGoalEnv
-from maze_envs import WALL_GOAL, WALL_START, WallMazeEnv, train_udpo, wall_crossing_y, wall_landmark_path
+from maze_envs import WALL_GOAL, WallMazeEnv, train_udpo, wall_crossing_y, wall_detour_end, wall_landmark_path
 from stable_baselines3 import HerReplayBuffer
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
@@ -205,16 +205,13 @@ def test_wall_maze_landmarks_go_around_the_wall():
     source's positions (the default) or not. The teacher is UDPO without the likelihood term: with the default
     planner_coef=1e-2 (plan_target="buffer") it does not learn the detour in 20k steps (3 seeds), SAC + HER with the
     same settings does by 12k; the student needs the default width, a [64, 64] one cuts through the thin wall
-    (tests/wall_maze_teacher.py, zoo_runs/landmarks/logs/wall_maze_teacher_*.log).
+    (tests/wall_maze_teacher.py, zoo_runs/landmarks/logs/wall_maze_teacher_*.log). Since the lean update (its
+    ensemble critic draws its initial weights in another order) the teacher goes around at 16k steps on seeds 2, 3 of
+    0-3 and at 20k on seeds 0, 1, 2 (``wall_detour_end``'s command): the teacher trains 20k steps.
     """
-    model = train_udpo(WallMazeEnv, total_timesteps=16_000, planner_coef=0.0)
-    env = WallMazeEnv()
-    obs, _ = env.reset(options={"start": WALL_START, "goal": WALL_GOAL})
-    for _ in range(env.max_episode_steps):
-        obs, _, _, _, info = env.step(model.predict(obs, deterministic=True)[0])
-        if info["is_success"]:
-            break
-    assert info["is_success"], f"the teacher does not go around the wall: it ends at {env.position}"
+    model = train_udpo(WallMazeEnv, total_timesteps=20_000, planner_coef=0.0)
+    reached, end = wall_detour_end(model)
+    assert reached, f"the teacher does not go around the wall: it ends at {end}"
 
     planner = distill_goal_planner(model, n_samples=20_000, gradient_steps=5000, net_arch=[256, 256])
     for snap in (None, False):  # plan's default (snapped: the planner has support goals), raw
@@ -222,7 +219,7 @@ def test_wall_maze_landmarks_go_around_the_wall():
         crossing_y = wall_crossing_y(path)
         assert not np.isnan(crossing_y), f"snap={snap}: the landmarks never reach the goal's side: {path}"
         assert crossing_y > -0.1, f"snap={snap}: the landmarks cross the wall at y = {crossing_y} (gap at y > 0): {path}"
-        assert np.linalg.norm(path[-1] - WALL_GOAL) < env.success_distance, f"snap={snap}: short of the goal: {path}"
+        assert np.linalg.norm(path[-1] - WALL_GOAL) < WallMazeEnv().success_distance, f"snap={snap}: short of the goal: {path}"
 
 
 def test_reached_labels_are_the_forward_model_step_of_the_teacher_action():
