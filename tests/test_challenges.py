@@ -11,6 +11,7 @@ import pytest
 
 from sb3_pilot.experiments.challenges import CHALLENGES, run_challenge, steps_to
 from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
+from sb3_pilot.experiments.challenges.__main__ import only_stages
 from sb3_pilot.experiments.challenges.stages import STAGE_LOG, STAGE_MARKER
 from sb3_pilot.experiments.demo import main as demo_main
 from sb3_pilot.experiments.plots import main as plots_main
@@ -158,3 +159,13 @@ def test_demo_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = capsys.readouterr().out
     assert "PILoT" in out and "SAC+HER" in out and "Wall time" in out
     assert (tmp_path / "high-dim-action" / "success.png").stat().st_size > 10_000
+
+
+def test_only_stages_keeps_what_they_read_from(capsys: pytest.CaptureFixture[str]) -> None:
+    """``--stages her`` runs the baseline alone (a budget sized before any PILoT run); a target brings its source."""
+    challenge = CHALLENGES["maze-car"]
+    assert [stage.name for stage in only_stages(challenge, ["her"]).stages] == ["her"]
+    assert [stage.name for stage in only_stages(challenge, ["pilot"]).stages] == ["source", "distill", "pilot"]
+    with pytest.raises(SystemExit):
+        challenges_main(["maze-car", "--stages", "baseline"])
+    assert "['baseline'] are not stages of maze-car" in capsys.readouterr().err

@@ -1,17 +1,39 @@
 """
 ``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N [--root zoo_runs] [--plot]
-[--jobs N | --backend ray [--ray-address ADDR]] [--threads T] [--reuse-shipped]``.
+[--jobs N | --backend ray [--ray-address ADDR]] [--threads T] [--reuse-shipped] [--stages NAME ...]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import signal
 import sys
 
 from sb3_pilot.experiments.challenges.backends import BACKENDS, StageFailed
-from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, REUSE_SHIPPED
+from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, REUSE_SHIPPED, Challenge
 from sb3_pilot.experiments.challenges.runner import run_challenge
+
+
+def only_stages(challenge: Challenge, names: list[str]) -> Challenge:
+    """
+    The challenge reduced to the stages ``names`` and, transitively, those they read from.
+
+    :param challenge: the challenge
+    :param names: stage names
+    :raise ValueError: for a name that is no stage of the challenge
+    """
+    stages = {stage.name: stage for stage in challenge.stages}
+    unknown = sorted(set(names) - set(stages))
+    if unknown:
+        raise ValueError(f"--stages: {unknown} are not stages of {challenge.name} ({', '.join(stages)})")
+    kept, todo = set(), list(names)
+    while todo:
+        name = todo.pop()
+        if name not in kept:
+            kept.add(name)
+            todo.extend(stages[name].needs)
+    return dataclasses.replace(challenge, stages=tuple(stage for stage in challenge.stages if stage.name in kept))
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -51,6 +73,13 @@ def main(argv: list[str] | None = None) -> None:
         help=f"evaluate the models shipped in the repository instead of training them ({', '.join(REUSE_SHIPPED)}): "
         "writes ROOT/CHALLENGE-shipped/",
     )
+    parser.add_argument(
+        "--stages",
+        nargs="+",
+        default=None,
+        help="run only these stages and those they read from (e.g. --stages her: the baseline alone, to size a budget "
+        "before any PILoT run); the same stage folders as the whole challenge's, which a later full run reuses",
+    )
     args = parser.parse_args(argv)
     if args.seeds < 1:
         parser.error(f"--seeds is the number of seeds (0 .. N-1), at least 1, got {args.seeds}: --seeds 1 runs seed 0")
@@ -62,6 +91,11 @@ def main(argv: list[str] | None = None) -> None:
     if args.reuse_shipped and any(name not in REUSE_SHIPPED for name in names):
         parser.error(f"--reuse-shipped: shipped models exist for {', '.join(REUSE_SHIPPED)} only")
     challenges = [REUSE_SHIPPED[name] if args.reuse_shipped else CHALLENGES[name] for name in names]
+    if args.stages is not None:
+        try:
+            challenges = [only_stages(challenge, args.stages) for challenge in challenges]
+        except ValueError as error:
+            parser.error(str(error))
     for challenge in challenges:
         try:
             run_challenge(
