@@ -108,7 +108,7 @@ def test_stage_graphs() -> None:
         "vec-to-image": bonus,
         "vec-to-image-reacher": bonus,
         "complex-morph": bonus,
-        "maze-car": bonus,
+        "maze-car": {**bonus, "mega": ()},
         "zero-shot-ant-maze": {
             "maze": (),
             "distill": ("maze",),

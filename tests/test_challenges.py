@@ -135,7 +135,7 @@ def test_bonus_challenges_smoke(tmp_path: Path, name: str) -> None:
 
 
 def test_maze_car_smoke(tmp_path: Path) -> None:
-    """Maze2D UDPO -> distilled planner -> HER + bonus on the car (cheap: pure numpy), its statistics and table row."""
+    """Maze2D UDPO -> distilled planner -> HER + bonus on the car, and MEGA (cheap: pure numpy), statistics and rows."""
     from sb3_pilot.experiments.pairs import table
 
     summary = run_challenge("maze-car", "smoke", root=tmp_path)
@@ -144,11 +144,12 @@ def test_maze_car_smoke(tmp_path: Path) -> None:
     zoo = summary["stages"]["seed_0/pilot_disp"]["config"]["zoo"]
     assert "displacement_cosine" in " ".join(zoo) and "Pilot/Maze2DCar-v0" in zoo
     rows = table([run_dir], reps=200)
-    assert rows.count("\n") == 1 + 3 and "too few seeds (1)" in rows  # one seed: intervals, but no verdict
+    assert rows.count("\n") == 1 + 4 and "too few seeds (1)" in rows  # one seed: intervals, but no verdict
     statistics = json.loads((run_dir / "summary.json").read_text())["statistics"]
     assert set(statistics["comparisons"]) == {
         "HER+PILoT (bonus, paper: goal_cosine)",
         "HER+PILoT (bonus, displacement_cosine)",
+        "SAC+HER+MEGA (baseline)",
     }
     check_pngs(run_dir, {"success.png", "plan_error.png", "landmarks.png"})
 

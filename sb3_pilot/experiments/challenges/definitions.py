@@ -155,6 +155,8 @@ def _wall_margin(outputs: dict[str, Path]) -> dict[str, Any]:
 
 
 HER, PLANNER_TRANSFER = "SAC+HER (scratch)", "UDPO+PILoT (planner transfer)"
+#: MEGA (Pitis et al., 2020) on SAC+HER: the paper's exploration baseline (:mod:`sb3_pilot.baselines`).
+HER_MEGA = "SAC+HER+MEGA (baseline)"
 #: The two HER + PILoT methods of a bonus challenge: the paper's similarity and this package's default.
 PILOT_PAPER, PILOT_DISPLACEMENT = "HER+PILoT (bonus, paper: goal_cosine)", "HER+PILoT (bonus, displacement_cosine)"
 
@@ -216,12 +218,16 @@ MAZE_CAR_DESCRIPTION = (
 )
 # uniform starts and goals on both tasks: the planner knows the maze everywhere, and the car's 50-step episodes cannot
 # join the two ends of the U (about 24 units at 0.5 a step, and turns)
-MAZE_CAR_STAGES = _bonus_stages("Pilot/Maze2D-v0", "Pilot/Maze2DCar-v0", {"goal_distribution": "uniform"})
+MAZE_CAR_STAGES = (
+    *_bonus_stages("Pilot/Maze2D-v0", "Pilot/Maze2DCar-v0", {"goal_distribution": "uniform"}),
+    # the paper's stronger exploration baseline on the same target, its recipe SAC+HER's (hyperparams/cpu/sac_mega.yml)
+    ZooTrain("mega", "sac", "Pilot/Maze2DCar-v0", "sac_mega.yml", method=HER_MEGA),
+)
 MAZE_CAR_STEPS = {
-    "smoke": {"source": 300, "pilot": 300, "pilot_disp": 300, "her": 300},
+    "smoke": {"source": 300, "pilot": 300, "pilot_disp": 300, "her": 300, "mega": 300},
     # the target's budget was fixed from SAC+HER's runs alone, before any HER+PILoT run (zoo_runs/maze-car/README.md);
     # the source's: Zero-shot Ant-Maze's Maze2D source, which made the shipped plain Maze2D planner
-    "cpu": {"source": 20_000, "pilot": 20_000, "pilot_disp": 20_000, "her": 20_000},
+    "cpu": {"source": 20_000, "pilot": 20_000, "pilot_disp": 20_000, "her": 20_000, "mega": 20_000},
 }
 
 CHALLENGES: dict[str, Challenge] = {
@@ -379,7 +385,8 @@ REUSE_SHIPPED: dict[str, Challenge] = {
         "Pilot/Maze2DCar-v0",
         (Shipped("distill", MAZE_CAR_PLANNER), *MAZE_CAR_STAGES[2:]),
         steps={
-            budget: {name: steps[name] for name in ("pilot", "pilot_disp", "her")} for budget, steps in MAZE_CAR_STEPS.items()
+            budget: {name: steps[name] for name in ("pilot", "pilot_disp", "her", "mega")}
+            for budget, steps in MAZE_CAR_STEPS.items()
         },
         fast_hyperparams=MAZE_CAR_FAST,
     ),
