@@ -143,6 +143,8 @@ def test_maze_car_smoke(tmp_path: Path) -> None:
     check_summary(summary, "maze-car", run_dir)
     zoo = summary["stages"]["seed_0/pilot_disp"]["config"]["zoo"]
     assert "displacement_cosine" in " ".join(zoo) and "Pilot/Maze2DCar-v0" in zoo
+    # the YAML's MEGA callback survives the stage's own (the CSV logger): a MEGA wrapper without it changes nothing
+    assert "sb3_pilot.baselines.MegaCallback" in " ".join(summary["stages"]["seed_0/mega"]["config"]["zoo"])
     rows = table([run_dir], reps=200)
     assert rows.count("\n") == 1 + 4 and "too few seeds (1)" in rows  # one seed: intervals, but no verdict
     statistics = json.loads((run_dir / "summary.json").read_text())["statistics"]

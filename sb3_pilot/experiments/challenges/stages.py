@@ -247,8 +247,13 @@ class ZooTrain:
         first_episodes = entry.get("n_envs", 1) * episode_steps
         if first_episodes > hyperparams.get("learning_starts", entry.get("learning_starts", 100)):
             hyperparams["learning_starts"] = first_episodes
-        callbacks = [{f"{__name__}.CSVLogger": {"folder": str(stage_dir)}}, *hyperparams.pop("callback", [])]
-        hyperparams["callback"] = callbacks
+        # -params callback replaces the YAML's, as in the zoo: so the YAML's (MEGA's, sac_mega.yml) is kept unless the
+        # stage computes its own (a transfer callback with the source's path), beside the CSV logger
+        callbacks = hyperparams.pop("callback", None)
+        if callbacks is None:
+            callbacks = entry.get("callback", [])
+            callbacks = callbacks if isinstance(callbacks, list) else [callbacks]
+        hyperparams["callback"] = [{f"{__name__}.CSVLogger": {"folder": str(stage_dir)}}, *callbacks]
         args = ["train", "--algo", self.algo, "--env", self.env_id, "--conf-file", conf_file, "-f", str(stage_dir)]
         args += ["--seed", str(ctx.seed), "-n", str(steps), "--num-threads", str(ctx.threads)]
         args += ["--eval-freq", str(max(steps // ctx.budget.n_evals, 1)), "--eval-episodes", str(ctx.budget.eval_episodes)]
