@@ -207,7 +207,8 @@ def test_wall_maze_landmarks_go_around_the_wall():
     same settings does by 12k; the student needs the default width, a [64, 64] one cuts through the thin wall
     (tests/wall_maze_teacher.py, zoo_runs/landmarks/logs/wall_maze_teacher_*.log). Since the lean update (its
     ensemble critic draws its initial weights in another order) the teacher goes around at 16k steps on seeds 2, 3 of
-    0-3 and at 20k on seeds 0, 1, 2 (``wall_detour_end``'s command): the teacher trains 20k steps.
+    0-3 and at 20k on seeds 0, 1, 2 (``wall_detour_end``'s command; 16k: the same with 16_000): the teacher
+    trains 20k steps.
     """
     model = train_udpo(WallMazeEnv, total_timesteps=20_000, planner_coef=0.0)
     reached, end = wall_detour_end(model)
