@@ -9,9 +9,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from sb3_pilot.experiments.challenges import CHALLENGES, run_challenge, steps_to
+from sb3_pilot.experiments.challenges import CHALLENGES, format_table, only_stages, run_challenge, steps_to
 from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
-from sb3_pilot.experiments.challenges.__main__ import only_stages
 from sb3_pilot.experiments.challenges.stages import STAGE_LOG, STAGE_MARKER
 from sb3_pilot.experiments.demo import main as demo_main
 from sb3_pilot.experiments.plots import main as plots_main
@@ -156,12 +155,27 @@ def test_maze_car_smoke(tmp_path: Path) -> None:
     check_pngs(run_dir, {"success.png", "plan_error.png", "landmarks.png"})
 
 
+def test_three_seeds_get_statistics(tmp_path: Path) -> None:
+    """From 3 seeds on, ``summary.json`` carries the rliable statistics and the printed table their verdicts."""
+    challenge = only_stages(CHALLENGES["maze-car"], ["her", "mega"])
+    summary = run_challenge(challenge, "smoke", seeds=[0, 1, 2], root=tmp_path, jobs=2)
+    statistics = json.loads((tmp_path / "maze-car" / "summary.json").read_text())["statistics"]
+    assert statistics == summary["statistics"] and set(statistics["comparisons"]) == {"SAC+HER+MEGA (baseline)"}
+    area = statistics["methods"]["SAC+HER (scratch)"]["area"]
+    assert area["ci"][0] <= area["value"] <= area["ci"][1]
+    assert "area gain" in format_table(summary) and "| baseline |" in format_table(summary)
+
+
 def test_demo_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """The demo's code path at a tiny budget (the real demo takes minutes)."""
-    demo_main(["--root", str(tmp_path), "--source-steps", "300", "--steps", "200"])
+    demo_main(
+        ["--root", str(tmp_path), "--source-steps", "300", "--steps", "200", "--bonus-seeds", "1", "--bonus-steps", "200"]
+    )
     out = capsys.readouterr().out
     assert "PILoT" in out and "SAC+HER" in out and "Wall time" in out
-    assert (tmp_path / "high-dim-action" / "success.png").stat().st_size > 10_000
+    assert "1 seed(s) cannot tell a gain from noise" in out and "committed 10-seed run" in out
+    for challenge in ("high-dim-action", "maze-car-shipped"):
+        assert (tmp_path / challenge / "success.png").stat().st_size > 10_000
 
 
 def test_only_stages_keeps_what_they_read_from(capsys: pytest.CaptureFixture[str]) -> None:

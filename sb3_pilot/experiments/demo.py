@@ -1,6 +1,7 @@
 """
-The smallest genuine PILoT pipeline (``make demo``): the High-Dim-Action challenge (Fetch-Reach) at the named
-``demo`` budget, one seed.
+The smallest genuine PILoT pipeline (``make demo``), two of its transfers on a CPU in about five minutes.
+
+Planner transfer: the High-Dim-Action challenge (Fetch-Reach) at the named ``demo`` budget, one seed.
 
 1. a source UDPO on Pilot/FetchReach-v0 (4-dim actions), through the RL Zoo, 8000 steps;
 2. its state planner transferred, frozen, into a UDPO on Pilot/FetchReachHighDim-v0 (8-dim actions through
@@ -13,50 +14,61 @@ The smallest genuine PILoT pipeline (``make demo``): the High-Dim-Action challen
 All three use RL-Zoo's FetchReach settings, VecNormalize included (``RL_ZOO_FETCH_NORMALIZED``); every stage is
 seeded, so the same seed gives the same numbers (one torch thread, CPU).
 
-    python -m sb3_pilot.experiments.demo [--root zoo_runs/demo] [--seed 0] [--source-steps N] [--steps N]
+Reward bonus: the Maze-Car pair with the shipped Maze2D goal planner (``maze-car --reuse-shipped``), HER + PILoT
+(displacement-cosine bonus) and SAC + HER on the car, ``--bonus-seeds`` seeds (2) at its ``cpu`` budget (20k
+steps), two stages at a time. A few seeds of a sparse-reward task cannot tell a gain from noise: the demo prints
+their areas under the success curve beside the 10-seed result committed in ``zoo_runs/maze-car-shipped``.
 
-Reruns resume: finished stages are skipped. ``--source-steps`` / ``--steps`` override the budget's step counts.
+    python -m sb3_pilot.experiments.demo [--root zoo_runs/demo] [--seed 0] [--source-steps N] [--steps N]
+        [--bonus-seeds N] [--bonus-steps N]
+
+Reruns resume: finished stages are skipped. ``--source-steps`` / ``--steps`` override the High-Dim-Action budget's
+step counts, ``--bonus-steps`` the Maze-Car ones; ``--bonus-seeds 0`` skips the bonus.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
-from sb3_pilot.experiments.challenges import CHALLENGES, run_challenge
-from sb3_pilot.experiments.challenges.definitions import HER, PLANNER_TRANSFER
+import numpy as np
+
+from sb3_pilot.experiments.challenges import CHALLENGES, REUSE_SHIPPED, only_stages, run_challenge
+from sb3_pilot.experiments.challenges.definitions import HER, PILOT_DISPLACEMENT, PLANNER_TRANSFER
+from sb3_pilot.experiments.challenges.stages import REPO_DIR
 from sb3_pilot.experiments.plots import plot_challenge
 
 CHALLENGE = "high-dim-action"
 #: The named budget of ``make demo`` (``BUDGETS["demo"]``, ``CHALLENGES["high-dim-action"].steps["demo"]``).
 BUDGET = "demo"
+#: The bonus part: Maze-Car with the shipped planner, its displacement-cosine bonus and SAC+HER, at this budget.
+BONUS_CHALLENGE = only_stages(REUSE_SHIPPED["maze-car"], ["pilot_disp", "her"])
+BONUS_BUDGET = "cpu"
+#: The committed 10-seed run of the same stages, the reference the demo's few seeds are printed beside.
+BONUS_REFERENCE = REPO_DIR / "zoo_runs" / "maze-car-shipped" / "summary.json"
 
 
-def main(argv: list[str] | None = None) -> None:
-    """Run the demo and print what it measured."""
-    parser = argparse.ArgumentParser(
-        prog="python -m sb3_pilot.experiments.demo", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("--root", default="zoo_runs/demo", help="output root (models under ROOT/high-dim-action/models)")
-    parser.add_argument("--source-steps", type=int, default=None, help="env steps of the source UDPO (budget: 8000)")
-    parser.add_argument("--steps", type=int, default=None, help="env steps of each target run (budget: 4000)")
-    parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
+def planner_transfer(root: str, seed: int, source_steps: int | None, target_steps: int | None) -> list[Path]:
+    """
+    High-Dim-Action at the ``demo`` budget, one seed: run it, print what it measured.
 
-    start = time.perf_counter()
+    :return: the plots written
+    """
     steps = dict(CHALLENGES[CHALLENGE].steps[BUDGET])
-    if args.source_steps is not None:
-        steps["source"] = args.source_steps
-    if args.steps is not None:
-        steps["pilot"] = steps["her"] = args.steps
-    summary = run_challenge(CHALLENGE, BUDGET, seeds=[args.seed], root=args.root, steps=steps, progress=sys.stdout.isatty())
-    pngs = plot_challenge(Path(args.root) / CHALLENGE)
+    if source_steps is not None:
+        steps["source"] = source_steps
+    if target_steps is not None:
+        steps["pilot"] = steps["her"] = target_steps
+    summary = run_challenge(CHALLENGE, BUDGET, seeds=[seed], root=root, steps=steps, progress=sys.stdout.isatty(), jobs=2)
+    pngs = plot_challenge(Path(root) / CHALLENGE)
     pilot, her = (summary["methods"][name]["runs"][0] for name in (PLANNER_TRANSFER, HER))
-    source = summary["stages"][f"seed_{args.seed}/source"]
+    source = summary["stages"][f"seed_{seed}/source"]
     source_stage = next(stage for stage in CHALLENGES[CHALLENGE].stages if stage.name == "source")
-    _, source_success = source_stage.curve(Path(args.root).resolve() / CHALLENGE / "models" / f"seed_{args.seed}" / "source")
+    _, source_success = source_stage.curve(Path(root).resolve() / CHALLENGE / "models" / f"seed_{seed}" / "source")
     print(
         f"\nSource UDPO on Pilot/FetchReach-v0: {steps['source']} steps ({source['wall_time_s']:.0f} s), "
         f"final success {source_success[-1]:.2f}."
@@ -82,6 +94,62 @@ def main(argv: list[str] | None = None) -> None:
     if source_success[-1] < 0.9:
         verdict += " The source ended below 0.9 success: its planner is not a trained one yet."
     print(verdict + " One seed; zoo_runs/high-dim-action has 3 seeds at the cpu budget.")
+    return pngs
+
+
+def _areas(summary: dict[str, Any], method: str) -> list[float]:
+    """The area under the success curve (mean success over the evaluations) of each seed of ``method``."""
+    return [float(np.mean(run["success_rate"])) for run in summary["methods"][method]["runs"]]
+
+
+def reward_bonus(root: str, seeds: int, steps: int | None) -> list[Path]:
+    """
+    Maze-Car, HER + PILoT's bonus against SAC + HER, ``seeds`` seeds: run it, print the areas beside the reference.
+
+    :return: the plots written
+    """
+    stage_steps = None if steps is None else {"pilot_disp": steps, "her": steps}
+    summary = run_challenge(
+        BONUS_CHALLENGE, BONUS_BUDGET, seeds=range(seeds), root=root, steps=stage_steps, progress=sys.stdout.isatty(), jobs=2
+    )
+    pngs = plot_challenge(Path(root) / BONUS_CHALLENGE.name)
+    print(
+        f"\nReward bonus on Pilot/Maze2DCar-v0 (shipped Maze2D planner), {seeds} seed(s) of "
+        f"{summary['methods'][HER]['mean']['timesteps'][-1]} steps, area under the success curve per seed:"
+    )
+    for method in (PILOT_DISPLACEMENT, HER):
+        print(f"  {method:40s} {[round(area, 2) for area in _areas(summary, method)]}")
+    if BONUS_REFERENCE.exists():
+        reference = json.loads(BONUS_REFERENCE.read_text())
+        gain = reference["statistics"]["comparisons"][PILOT_DISPLACEMENT]
+        print(
+            f"{seeds} seed(s) cannot tell a gain from noise (seeds 0-2 of the committed run did not either). The committed "
+            f"{len(reference['seeds'])}-seed run of the same stages ({BONUS_REFERENCE.relative_to(REPO_DIR)}): "
+            f"{gain['verdict']}, IQM areas {reference['statistics']['methods'][PILOT_DISPLACEMENT]['area']['value']:.2f} "
+            f"(bonus) vs {reference['statistics']['methods'][HER]['area']['value']:.2f} (SAC+HER)."
+        )
+    return pngs
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Run the demo and print what it measured."""
+    parser = argparse.ArgumentParser(
+        prog="python -m sb3_pilot.experiments.demo", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--root", default="zoo_runs/demo", help="output root (models under ROOT/<challenge>/models)")
+    parser.add_argument("--source-steps", type=int, default=None, help="env steps of the source UDPO (budget: 8000)")
+    parser.add_argument("--steps", type=int, default=None, help="env steps of each High-Dim-Action target run (budget: 4000)")
+    parser.add_argument("--seed", type=int, default=0, help="High-Dim-Action's seed")
+    parser.add_argument("--bonus-seeds", type=int, default=2, help="Maze-Car seeds 0 .. N-1 (0: no bonus part)")
+    parser.add_argument("--bonus-steps", type=int, default=None, help="env steps of each Maze-Car run (budget: 20000)")
+    args = parser.parse_args(argv)
+    if args.bonus_seeds < 0:
+        parser.error(f"--bonus-seeds must be >= 0, got {args.bonus_seeds}")
+
+    start = time.perf_counter()
+    pngs = planner_transfer(args.root, args.seed, args.source_steps, args.steps)
+    if args.bonus_seeds:
+        pngs += reward_bonus(args.root, args.bonus_seeds, args.bonus_steps)
     print(f"Plots: {', '.join(str(png) for png in pngs)}. Wall time {time.perf_counter() - start:.0f} s.")
 
 

@@ -7,7 +7,7 @@ process of its own, up to ``--jobs N`` at once on this machine or as Ray tasks (
 """
 
 from sb3_pilot.experiments.challenges.backends import StageFailed
-from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, REUSE_SHIPPED, Challenge
+from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, REUSE_SHIPPED, Challenge, only_stages
 from sb3_pilot.experiments.challenges.runner import format_table, run_challenge, stage_graph, steps_to
 from sb3_pilot.experiments.challenges.stages import Budget, Distill, Guidance, Shipped, ZooTrain
 
@@ -23,6 +23,7 @@ __all__ = [
     "StageFailed",
     "ZooTrain",
     "format_table",
+    "only_stages",
     "run_challenge",
     "stage_graph",
     "steps_to",

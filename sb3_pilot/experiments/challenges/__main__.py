@@ -6,34 +6,12 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import signal
 import sys
 
 from sb3_pilot.experiments.challenges.backends import BACKENDS, StageFailed
-from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, REUSE_SHIPPED, Challenge
+from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, REUSE_SHIPPED, only_stages
 from sb3_pilot.experiments.challenges.runner import run_challenge
-
-
-def only_stages(challenge: Challenge, names: list[str]) -> Challenge:
-    """
-    The challenge reduced to the stages ``names`` and, transitively, those they read from.
-
-    :param challenge: the challenge
-    :param names: stage names
-    :raise ValueError: for a name that is no stage of the challenge
-    """
-    stages = {stage.name: stage for stage in challenge.stages}
-    unknown = sorted(set(names) - set(stages))
-    if unknown:
-        raise ValueError(f"--stages: {unknown} are not stages of {challenge.name} ({', '.join(stages)})")
-    kept, todo = set(), list(names)
-    while todo:
-        name = todo.pop()
-        if name not in kept:
-            kept.add(name)
-            todo.extend(stages[name].needs)
-    return dataclasses.replace(challenge, stages=tuple(stage for stage in challenge.stages if stage.name in kept))
 
 
 def main(argv: list[str] | None = None) -> None:

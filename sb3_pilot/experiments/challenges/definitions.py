@@ -27,6 +27,7 @@ runs.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -391,3 +392,24 @@ REUSE_SHIPPED: dict[str, Challenge] = {
         fast_hyperparams=MAZE_CAR_FAST,
     ),
 }
+
+
+def only_stages(challenge: Challenge, names: list[str]) -> Challenge:
+    """
+    The challenge reduced to the stages ``names`` and, transitively, those they read from.
+
+    :param challenge: the challenge
+    :param names: stage names
+    :raise ValueError: for a name that is no stage of the challenge
+    """
+    stages = {stage.name: stage for stage in challenge.stages}
+    unknown = sorted(set(names) - set(stages))
+    if unknown:
+        raise ValueError(f"--stages: {unknown} are not stages of {challenge.name} ({', '.join(stages)})")
+    kept, todo = set(), list(names)
+    while todo:
+        name = todo.pop()
+        if name not in kept:
+            kept.add(name)
+            todo.extend(stages[name].needs)
+    return dataclasses.replace(challenge, stages=tuple(stage for stage in challenge.stages if stage.name in kept))

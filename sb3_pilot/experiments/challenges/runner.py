@@ -13,7 +13,7 @@ import numpy as np
 import torch as th
 
 from sb3_pilot.experiments.challenges.backends import BACKENDS, StageTask, run_local, run_ray
-from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, Challenge
+from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, HER, Challenge
 from sb3_pilot.experiments.challenges.stages import (
     STAGE_MARKER,
     Budget,
@@ -22,6 +22,7 @@ from sb3_pilot.experiments.challenges.stages import (
     config_hash,
     portable,
 )
+from sb3_pilot.experiments.statistics import MIN_SEEDS, summary_statistics
 
 #: Success rates whose first crossing the summary reports (``steps_to_50``, ``steps_to_90``).
 THRESHOLDS = (0.5, 0.9)
@@ -270,6 +271,8 @@ def run_challenge(
     else:
         run_local(tasks, jobs, on_start, on_finish)
     summary = write_summary()
+    if len(seeds) >= MIN_SEEDS:  # the rliable statistics (seconds of bootstrap), as ``pairs`` writes them
+        summary["statistics"] = summary_statistics(summary, HER)
     (out_dir / SUMMARY).write_text(json.dumps(summary, indent=1))
     print(f"{label()} done", flush=True)
     print(format_table(summary))
@@ -277,17 +280,29 @@ def run_challenge(
 
 
 def format_table(summary: dict[str, Any]) -> str:
-    """A markdown table of a summary: final success (mean [min, max] over seeds) and steps to 50% / 90%."""
+    """
+    A markdown table of a summary: final success (mean [min, max] over seeds), steps to 50% / 90% of the mean curve
+    and, when the summary has its ``statistics`` (3 seeds or more), the IQM of the area under the success curve
+    with its 95% interval and the verdict against SAC+HER.
+    """
+    statistics = summary.get("statistics")
     lines = [
         f"{summary['challenge']} ({summary['budget']} budget, seeds {summary['seeds']}) on {summary['target_env']}",
-        "| method | env steps | final success, mean [min, max] | steps to 50% | steps to 90% |",
-        "|---|---|---|---|---|",
+        "| method | env steps | final success, mean [min, max] | steps to 50% | steps to 90% |"
+        + (" area, IQM [95% CI] | verdict |" if statistics else ""),
+        "|---|---|---|---|---|" + ("---|---|" if statistics else ""),
     ]
     for method, result in summary["methods"].items():
         finals = [run["success_rate"][-1] for run in result["runs"]]
         mean = result["mean"]
-        lines.append(
+        line = (
             f"| {method} | {mean['timesteps'][-1]} | {np.mean(finals):.2f} [{min(finals):.2f}, {max(finals):.2f}] | "
             f"{mean['steps_to_50'] or '-'} | {mean['steps_to_90'] or '-'} |"
         )
+        if statistics:
+            area = statistics["methods"][method]["area"]
+            comparison = statistics["comparisons"].get(method)
+            line += f" {area['value']:.2f} [{area['ci'][0]:.2f}, {area['ci'][1]:.2f}] | "
+            line += f"{comparison['verdict'] if comparison else 'baseline' if method == HER else '-'} |"
+        lines.append(line)
     return "\n".join(lines)
