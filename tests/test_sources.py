@@ -2,8 +2,18 @@
 
 from pathlib import Path
 
-from sb3_pilot.experiments.benchmarks.sources import SAC_HER, SOURCE_TASKS, UDPO_HER, main, source_challenge, verdict
+from sb3_pilot.experiments.benchmarks.sources import (
+    SAC_HER,
+    SOURCE_TASKS,
+    UDPO_HER,
+    main,
+    source_challenge,
+    table,
+    verdict,
+)
 from sb3_pilot.experiments.challenges import stage_graph
+from sb3_pilot.experiments.challenges.definitions import BUDGETS
+from sb3_pilot.experiments.challenges.stages import StageContext
 
 
 def test_every_source_task_has_two_independent_stages() -> None:
@@ -11,18 +21,49 @@ def test_every_source_task_has_two_independent_stages() -> None:
         challenge = source_challenge(env_id)
         assert stage_graph(challenge, [0, 1]) == {f"seed_{s}/{n}": () for s in (0, 1) for n in ("udpo", "her")}
         assert [stage.method for stage in challenge.stages] == [UDPO_HER, SAC_HER]
-        assert bool(challenge.fast_hyperparams) == ("Fetch" in env_id)
+        assert bool(challenge.fast_hyperparams) == ("Fetch" in env_id or env_id == "Pilot/Maze2D-v0")
+
+
+def test_maze2d_trains_on_uniform_goals_and_is_evaluated_on_the_far_goal(tmp_path: Path) -> None:
+    challenge = source_challenge("Pilot/Maze2D-v0")
+    ctx = StageContext(tmp_path, 0, BUDGETS["cpu"], {}, challenge.fast_hyperparams, {})
+    for stage in challenge.stages:
+        args = stage.zoo_args(ctx, tmp_path / stage.name)
+        assert args[args.index("--env-kwargs") + 1] == "goal_distribution:'uniform'"
+        assert args[args.index("--eval-env-kwargs") + 1] == "goal_distribution:'far'"
+        assert "policy_kwargs:{'net_arch': [64, 64]}" in args
 
 
 def test_verdict() -> None:
-    def mean(to_50: int | None, to_90: int | None) -> dict:
-        return {"steps_to_50": to_50, "steps_to_90": to_90}
+    """Issue 21's rule on the IQM steps to 90% (censored seeds included): UDPO as fast as HER within 1.1x."""
 
-    assert verdict(mean(1000, 2000), mean(1000, 2000)).startswith("as fast as HER (90% at 1.00x")
-    assert verdict(mean(1000, 3000), mean(1000, 2000)).startswith("slower than HER (90% at 1.50x")
-    assert verdict(mean(1000, None), mean(2000, None)).startswith("as fast as HER (50% at 0.50x")
-    assert verdict(mean(None, None), mean(2000, None)) == "HER only reached 50%"
-    assert verdict(mean(None, None), mean(None, None)) == "neither reached 50% at this budget"
+    def stats(steps: int, reached: int, seeds: int = 5) -> dict:
+        return {"seeds": seeds, "steps_to_90": {"value": steps, "ci": [steps, steps], "reached": reached}}
+
+    assert verdict(stats(2000, 5), stats(2000, 5)) == "as fast as HER (IQM steps to 90% 1.00x HER's)"
+    assert verdict(stats(2200, 5), stats(2000, 5)).startswith("as fast as HER (IQM steps to 90% 1.10x")
+    assert verdict(stats(2400, 5), stats(2000, 5)).startswith("slower than HER (IQM steps to 90% 1.20x")
+    assert verdict(stats(1000, 3), stats(2000, 0)).startswith("as fast as HER (IQM steps to 90% 0.50x")
+    assert verdict(stats(11000, 0), stats(11000, 0)) == "neither reached 90% at this budget"
+    assert verdict(stats(2000, 2, seeds=2), stats(2000, 2, seeds=2)).startswith("too few seeds (2) for a verdict")
+
+
+def test_table_statistics() -> None:
+    """The table's IQM, intervals and verdict come from statistics.method_statistics of each method's runs."""
+    steps = [1000 * k for k in range(1, 11)]
+    fast, slow = [0.0, 0.5, 0.9, *[1.0] * 7], [0.0, 0.0, 0.5, 0.9, *[1.0] * 6]
+    summary = {
+        "target_env": "Pilot/Maze2D-v0",
+        "seeds": [0, 1, 2],
+        "methods": {
+            UDPO_HER: {"runs": [{"timesteps": steps, "success_rate": slow}] * 3, "mean": {"timesteps": steps}},
+            SAC_HER: {"runs": [{"timesteps": steps, "success_rate": fast}] * 3, "mean": {"timesteps": steps}},
+        },
+    }
+    rows = table([summary], reps=50).splitlines()[2:]
+    assert rows[0].startswith("| Pilot/Maze2D-v0 (3) | UDPO+HER | 10000 | 3000 [3000, 3000] (3/3) | 4000 [4000, 4000] (3/3) |")
+    assert "| 1.00 [1.00, 1.00] | 0.74 [0.74, 0.74] | slower than HER (IQM steps to 90% 1.33x HER's) |" in rows[0]
+    assert rows[1].startswith("|  | SAC+HER | 10000 | 2000 [2000, 2000] (3/3) | 3000 [3000, 3000] (3/3) |")
 
 
 def test_sources_smoke(tmp_path: Path) -> None:

@@ -3,83 +3,157 @@ The paper's claim about sources: UDPO learns the source tasks about as fast as H
 UDPO + HER and SAC + HER train with the same budget and seeds, as two stages of the challenge runner (the zoo with this
 package's YAML, resumable, ``summary.json`` and ``success.png`` per task), then a table with a verdict per task::
 
-    python -m sb3_pilot.experiments.benchmarks.sources --budget cpu --seeds 0 --jobs 2 --root zoo_runs/sources
+    python -m sb3_pilot.experiments.benchmarks.sources --budget cpu --seeds 0 1 2 --jobs 1 --root zoo_runs/sources \
+        --tasks Pilot/Maze2D-v0
+    python -m sb3_pilot.experiments.benchmarks.sources --table-only --root zoo_runs/sources
 
 The Fetch tasks use RL-Zoo's FetchReach settings with VecNormalize for both methods (``RL_ZOO_FETCH_NORMALIZED``, as
-the Fetch challenges), the others their ``hyperparams/<budget>`` entries.
+the Fetch challenges), the others their ``hyperparams/<budget>`` entries; Maze2D trains on uniform starts and goals
+and is evaluated on the far goal, with 64x64 networks (:data:`TRAIN_ENV_KWARGS`, :data:`FAST_HYPERPARAMS`).
+The table (``ROOT/table.md``, every task with a summary under ROOT) gives per task and method the ``rliable`` IQM over
+seeds and stratified-bootstrap 95% interval of the steps to 50% / 90% success, the final success and the area under
+the success curve (:mod:`sb3_pilot.experiments.statistics`), and :func:`verdict`: UDPO "as fast as HER" when its IQM
+steps to 90% are at most 1.1x SAC + HER's.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from sb3_pilot.experiments.challenges import Challenge, ZooTrain, run_challenge
 from sb3_pilot.experiments.challenges.definitions import RL_ZOO_FETCH_NORMALIZED
+from sb3_pilot.experiments.challenges.stages import StageContext
+from sb3_pilot.experiments.statistics import MIN_SEEDS, REPS, method_statistics
 
 SOURCE_TASKS = ("Pilot/FetchReach-v0", "Pilot/FetchPush-v0", "Pilot/Reacher-v0", "Pilot/Maze2D-v0", "Pilot/PointLocomotion-v0")
 UDPO_HER, SAC_HER = "UDPO+HER", "SAC+HER"
 #: Smoke steps: past the first episodes of every env, so that HER samples (PointLocomotion: 4 envs x 500 steps).
 SMOKE_STEPS = {"Pilot/FetchPush-v0": 500, "Pilot/PointLocomotion-v0": 2100}
+#: Task options of the training env, per task (the zoo's ``--env-kwargs``, every budget): Maze2D trains on starts
+#: and goals uniform over the maze, as the Maze-Car and zero-shot Ant-Maze sources do; on the far goal alone
+#: neither method reached the far end of the U in 20k steps (3 seeds each, zoo_runs/sources/old-recipe).
+TRAIN_ENV_KWARGS: dict[str, dict[str, Any]] = {"Pilot/Maze2D-v0": {"goal_distribution": "uniform"}}
+#: Task options of the evaluation env: Maze2D is evaluated on the far goal (the paper's hard case) only.
+EVAL_ENV_KWARGS: dict[str, dict[str, Any]] = {"Pilot/Maze2D-v0": {"goal_distribution": "far"}}
+#: Settings per task at the budgets with ``fast`` (both methods alike), beside the Fetch tasks' RL-Zoo settings:
+#: Maze2D's networks 64x64 (all of UDPO's too) instead of SB3's 256x256, as Maze-Car's agents: the same far-goal
+#: success for SAC + HER in the probes (1.0 from 10k steps on, seed 0 with 256x256, seed 1 with 64x64) at about
+#: twice the env steps per second on the shared 2-core machine (zoo_runs/sources/README.md).
+FAST_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
+    "Pilot/Maze2D-v0": {"*": {"policy_kwargs": {"net_arch": [64, 64]}}},
+}
+#: UDPO keeps pace with HER when its IQM steps to 90% success are at most this many times SAC + HER's (issue 21).
+AS_FAST = 1.1
+
+
+@dataclass(frozen=True)
+class SourceTrain(ZooTrain):
+    """
+    :class:`ZooTrain` whose evaluation env may take other task options than its training env (the zoo's
+    ``--eval-env-kwargs``).
+
+    :param eval_env_kwargs: keyword arguments of the evaluated task (empty: ``env_kwargs``)
+    """
+
+    eval_env_kwargs: dict[str, Any] = field(default_factory=dict)
+
+    def zoo_args(self, ctx: StageContext, stage_dir: Path) -> list[str]:
+        """:meth:`ZooTrain.zoo_args`, then ``--eval-env-kwargs``."""
+        args = super().zoo_args(ctx, stage_dir)
+        if self.eval_env_kwargs:
+            args += ["--eval-env-kwargs", *(f"{key}:{value!r}" for key, value in self.eval_env_kwargs.items())]
+        return args
 
 
 def source_challenge(env_id: str) -> Challenge:
-    """UDPO + HER beside SAC + HER on ``env_id``, two independent stages per seed."""
+    """UDPO + HER beside SAC + HER on ``env_id``, two independent stages per seed (same task options and settings)."""
     name = "source-" + env_id.split("/")[-1].removesuffix("-v0").lower()
     smoke = SMOKE_STEPS.get(env_id, 300)
+    env_kwargs, eval_env_kwargs = TRAIN_ENV_KWARGS.get(env_id, {}), EVAL_ENV_KWARGS.get(env_id, {})
     return Challenge(
         name,
         f"UDPO + HER vs SAC + HER on the source task {env_id}, same budget",
         env_id,
-        (
-            ZooTrain("udpo", "udpo", env_id, "udpo.yml", method=UDPO_HER),
-            ZooTrain("her", "sac", env_id, "sac.yml", method=SAC_HER),
+        tuple(
+            SourceTrain(stage, algo, env_id, conf, method=method, env_kwargs=env_kwargs, eval_env_kwargs=eval_env_kwargs)
+            for stage, algo, conf, method in (("udpo", "udpo", "udpo.yml", UDPO_HER), ("her", "sac", "sac.yml", SAC_HER))
         ),
         steps={"smoke": {"udpo": smoke, "her": smoke}},
-        fast_hyperparams=RL_ZOO_FETCH_NORMALIZED if "Fetch" in env_id else {},
+        fast_hyperparams=FAST_HYPERPARAMS.get(env_id, RL_ZOO_FETCH_NORMALIZED if "Fetch" in env_id else {}),
     )
 
 
 def verdict(udpo: dict[str, Any], her: dict[str, Any]) -> str:
     """
-    Whether UDPO learned as fast as HER, from the mean curves: compared at the highest of 90% / 50% success both
-    reached (UDPO "as fast" within 1.25x HER's steps), else by which one reached 50% at all.
+    Whether UDPO learned as fast as HER (issue 21's rule): "as fast as HER" when UDPO's IQM over seeds of the steps to
+    90% success is at most :data:`AS_FAST` times SAC + HER's, seeds that never reach 90% counted one evaluation
+    interval past the budget (``censored_at``, as :func:`~sb3_pilot.experiments.statistics.run_scores`).
 
-    :param udpo: ``summary["methods"][UDPO_HER]["mean"]``
+    :param udpo: UDPO + HER's :func:`~sb3_pilot.experiments.statistics.method_statistics`
     :param her: the same for SAC + HER
     """
-    for level in (90, 50):
-        udpo_steps, her_steps = udpo[f"steps_to_{level}"], her[f"steps_to_{level}"]
-        if udpo_steps is not None and her_steps is not None:
-            ratio = udpo_steps / her_steps
-            pace = "as fast as HER" if ratio <= 1.25 else "slower than HER"
-            return f"{pace} ({level}% at {ratio:.2f}x HER's steps)"
-        if udpo_steps is not None or her_steps is not None:
-            return f"{'UDPO' if udpo_steps is not None else 'HER'} only reached {level}%"
-    return "neither reached 50% at this budget"
+    udpo_steps, her_steps = udpo["steps_to_90"], her["steps_to_90"]
+    seeds = min(udpo["seeds"], her["seeds"])
+    if udpo_steps["reached"] == 0 and her_steps["reached"] == 0:
+        return "neither reached 90% at this budget"
+    ratio = udpo_steps["value"] / her_steps["value"]
+    pace = "as fast as HER" if ratio <= AS_FAST else "slower than HER"
+    text = f"{pace} (IQM steps to 90% {ratio:.2f}x HER's)"
+    return text if seeds >= MIN_SEEDS else f"too few seeds ({seeds}) for a verdict: {text}"
 
 
-def table(summaries: list[dict[str, Any]]) -> str:
-    """A markdown table: steps to 50% / 90% and final success (mean [min, max] over seeds) per task and method."""
+def _estimate(entry: dict[str, Any]) -> str:
+    """``value [low, high]`` of a statistic."""
+    low, high = entry["ci"]
+    return f"{entry['value']:.2f} [{low:.2f}, {high:.2f}]"
+
+
+def _steps(entry: dict[str, Any], seeds: int) -> str:
+    """IQM of the steps to a success rate, its interval and how many seeds reached it (the others censored)."""
+    if entry["reached"] == 0:
+        return f"never (0/{seeds})"
+    low, high = entry["ci"]
+    return f"{entry['value']:.0f} [{low:.0f}, {high:.0f}] ({entry['reached']}/{seeds})"
+
+
+def table(summaries: list[dict[str, Any]], reps: int = REPS) -> str:
+    """
+    A markdown table per task and method: the ``rliable`` IQM over seeds and stratified-bootstrap 95% interval of the
+    steps to 50% / 90% success (seeds reaching it; the others counted at ``censored_at``), the final success and the
+    area under the success curve (:func:`~sb3_pilot.experiments.statistics.method_statistics`), and :func:`verdict`.
+
+    :param summaries: the tasks' ``summary.json``
+    :param reps: bootstrap replications
+    """
     lines = [
-        "| task (seeds) | method | env steps | steps to 50% | steps to 90% | final success | verdict |",
-        "|---|---|---|---|---|---|---|",
+        "| task (seeds) | method | env steps | steps to 50%, IQM [95% CI] (seeds reaching it) | steps to 90% | "
+        "final success, IQM [95% CI] | area under the success curve, IQM [95% CI] | verdict |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for summary in summaries:
         methods = summary["methods"]
+        stats = {method: method_statistics(methods[method]["runs"], reps=reps) for method in (UDPO_HER, SAC_HER)}
+        task = f"{summary['target_env']} ({len(summary['seeds'])})"
         for method in (UDPO_HER, SAC_HER):
-            result = methods[method]
-            finals = [run["success_rate"][-1] for run in result["runs"]]
-            mean = result["mean"]
-            first = method == UDPO_HER
+            entry = stats[method]
             lines.append(
-                f"| {summary['target_env'] + ' (' + str(len(summary['seeds'])) + ')' if first else ''} | {method} | "
-                f"{mean['timesteps'][-1]} | {mean['steps_to_50'] or '-'} | {mean['steps_to_90'] or '-'} | "
-                f"{sum(finals) / len(finals):.2f} [{min(finals):.2f}, {max(finals):.2f}] | "
-                f"{verdict(methods[UDPO_HER]['mean'], methods[SAC_HER]['mean']) if first else ''} |"
+                f"| {task} | {method} | {methods[method]['mean']['timesteps'][-1]} | "
+                f"{_steps(entry['steps_to_50'], entry['seeds'])} | {_steps(entry['steps_to_90'], entry['seeds'])} | "
+                f"{_estimate(entry['final_success'])} | {_estimate(entry['area'])} | "
+                f"{verdict(stats[UDPO_HER], stats[SAC_HER]) if method == UDPO_HER else ''} |"
             )
+            task = ""
     return "\n".join(lines)
+
+
+def task_summaries(root: str | Path) -> list[dict[str, Any]]:
+    """The ``summary.json`` of every source task run under ``root`` (in :data:`SOURCE_TASKS`' order)."""
+    paths = (Path(root) / source_challenge(env_id).name / "summary.json" for env_id in SOURCE_TASKS)
+    return [json.loads(path.read_text()) for path in paths if path.is_file()]
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -90,16 +164,18 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--root", default="zoo_runs/sources")
     parser.add_argument("--jobs", type=int, default=1, help="stages at once (UDPO and HER of a seed run together)")
     parser.add_argument("--plot", action="store_true", help="write success.png per task")
+    parser.add_argument("--table-only", action="store_true", help="train nothing: rebuild table.md from ROOT's summaries")
+    parser.add_argument("--reps", type=int, default=REPS, help="bootstrap replications of the intervals")
     args = parser.parse_args(argv)
-    summaries = []
-    for env_id in args.tasks:
+    for env_id in [] if args.table_only else args.tasks:
         challenge = source_challenge(env_id)
-        summaries.append(run_challenge(challenge, args.budget, seeds=args.seeds, root=args.root, jobs=args.jobs))
+        run_challenge(challenge, args.budget, seeds=args.seeds, root=args.root, jobs=args.jobs)
         if args.plot:
             from sb3_pilot.experiments.plots import plot_challenge
 
             plot_challenge(Path(args.root) / challenge.name)
-    text = table(summaries)
+    # every task run under ROOT, not only those of this call
+    text = table(task_summaries(args.root), args.reps)
     (Path(args.root) / "table.md").write_text(text + "\n")
     print(text)
 
