@@ -107,7 +107,7 @@ def test_stage_graphs() -> None:
         "high-dim-action-push": transfer,
         "vec-to-image": bonus,
         "vec-to-image-reacher": bonus,
-        "complex-morph": bonus,
+        "complex-morph": {**bonus, "mega": ()},
         "maze-car": {**bonus, "mega": ()},
         "zero-shot-ant-maze": {
             "maze": (),
@@ -115,6 +115,7 @@ def test_stage_graphs() -> None:
             "controller": (),
             "pilot": ("distill", "controller"),
             "her": (),
+            "mega": (),
         },
     }
     for name, challenge in CHALLENGES.items():

@@ -285,13 +285,16 @@ CHALLENGES: dict[str, Challenge] = {
             "complex-morph",
             "UDPO on Point-Locomotion -> distilled goal planner -> HER + bonus on Ant-Locomotion, vs SAC+HER",
             "Pilot/AntLocomotion-v0",
-            _bonus_stages("Pilot/PointLocomotion-v0", "Pilot/AntLocomotion-v0"),
+            (
+                *_bonus_stages("Pilot/PointLocomotion-v0", "Pilot/AntLocomotion-v0"),
+                ZooTrain("mega", "sac", "Pilot/AntLocomotion-v0", "sac_mega.yml", method=HER_MEGA),
+            ),
             steps={
-                "smoke": {"source": 2100, "pilot": 500, "pilot_disp": 500, "her": 500},
+                "smoke": {"source": 2100, "pilot": 500, "pilot_disp": 500, "her": 500, "mega": 500},
                 # SAC + HER measured at 100k / 200k / 300k / 400k / 500k steps first (zoo_runs/complex-morph-budget):
                 # final distance 1.32 (the goals' mean distance: no progress) / 0.87 / 1.00 / 0.66 / 0.47; 300k is
                 # the most that fits 3 methods x 2 seeds in one session on 2 cores
-                "cpu": {"source": 50_000, "pilot": 300_000, "pilot_disp": 300_000, "her": 300_000},
+                "cpu": {"source": 50_000, "pilot": 300_000, "pilot_disp": 300_000, "her": 300_000, "mega": 300_000},
             },
         ),
         Challenge(
@@ -339,10 +342,12 @@ CHALLENGES: dict[str, Challenge] = {
                     switch_distance=None,
                 ),
                 ZooTrain("her", "sac", "Pilot/AntMaze-v0", "sac.yml", method=HER),
+                # the paper's exploration baseline trained on Ant-Maze, SAC+HER's recipe (hyperparams/cpu/sac_mega.yml)
+                ZooTrain("mega", "sac", "Pilot/AntMaze-v0", "sac_mega.yml", method=HER_MEGA),
             ),
             steps={
-                "smoke": {"maze": 300, "controller": 500, "her": 2100},
-                "cpu": {"maze": 20_000, "controller": 350_000, "her": 350_000},
+                "smoke": {"maze": 300, "controller": 500, "her": 2100, "mega": 2100},
+                "cpu": {"maze": 20_000, "controller": 350_000, "her": 350_000, "mega": 350_000},
             },
         ),
     )
