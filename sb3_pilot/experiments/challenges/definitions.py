@@ -88,7 +88,7 @@ HIGH_DIM_PUSH_FAST: dict[str, dict[str, Any]] = {
     "*": {**RL_ZOO_FETCH_NORMALIZED["*"], "policy_kwargs": {"net_arch": [256, 256]}},
 }
 #: Encoder of the pixel-only agents at the smoke and cpu budgets, both methods alike (:class:`PixelGoalExtractor`'s
-#: ``encoder``): chosen by success per wall-clock minute at the cpu budget (zoo_runs/pairs_README_section.md).
+#: ``encoder``): chosen by success per wall-clock minute at the cpu budget (zoo_runs/image-encoder/README.md).
 IMAGE_ENCODER = "nature"
 #: Vec-to-Image's settings: :data:`RL_ZOO_FETCH` with ``normalize: true`` for the UDPO source only (it learns
 #: FetchReach as in High-Dim-Action, and distillation maps the teacher's normalised plans back to raw goals, which is
