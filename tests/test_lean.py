@@ -138,14 +138,18 @@ def _as_sb3_critics(params: dict, n_critics: int) -> dict:
     return params
 
 
-@pytest.mark.parametrize("copy_info_dict", [False, True])
-def test_lean_her_samples_are_sb3_her_samples(copy_info_dict: bool) -> None:
-    """Same stored transitions, same random state: the same batch as SB3's HerReplayBuffer, VecNormalize included."""
+@pytest.mark.parametrize("copy_info_dict, buffer_size", [(False, 1_000_000), (True, 1_000_000), (False, 200)])
+def test_lean_her_samples_are_sb3_her_samples(copy_info_dict: bool, buffer_size: int) -> None:
+    """
+    Same stored transitions, same random state: the same batch as SB3's HerReplayBuffer, VecNormalize included, in a
+    buffer still filling (the lean one scans only its written rows) and in a full one that wrapped round.
+    """
     env = VecNormalize(DummyVecEnv([PointGoalEnv, PointGoalEnv]))
     her = {**HER, "replay_buffer_kwargs": {"n_sampled_goal": 4, "copy_info_dict": copy_info_dict}}
-    sac = SAC("MultiInputPolicy", env, **small(**her))
+    sac = SAC("MultiInputPolicy", env, **small(**her), buffer_size=buffer_size)
     assert type(sac.replay_buffer) is HerReplayBuffer
     sac.learn(300)
+    assert sac.replay_buffer.full == (buffer_size == 200)
     lean = copy.copy(sac.replay_buffer)
     lean.__class__ = LeanHerReplayBuffer
     lean.set_env(sac.replay_buffer.env)  # not copied: HerReplayBuffer.__getstate__ drops it

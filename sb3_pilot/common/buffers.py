@@ -37,7 +37,9 @@ class LeanHerReplayBuffer(HerReplayBuffer):
         :param env: the VecNormalize to normalise observations and rewards with, if any
         :return: the batch, its last ``int(her_ratio * batch_size)`` transitions with new goals and rewards
         """
-        is_valid = self.ep_length > 0
+        # the transitions of finished episodes (ep_length > 0): until the buffer is full, only rows below pos can be,
+        # so the scan stops there (SB3's scans all buffer_size rows per batch; same flat indices, same draws)
+        is_valid = (self.ep_length if self.full else self.ep_length[: self.pos]) > 0
         if not np.any(is_valid):
             raise RuntimeError(
                 "Unable to sample before the end of the first episode. We recommend choosing a value "
