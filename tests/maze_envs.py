@@ -121,8 +121,8 @@ def wall_detour_end(model: UDPO) -> tuple[bool, np.ndarray]:
     One deterministic episode of ``model`` from :data:`WALL_START` to :data:`WALL_GOAL` on :class:`WallMazeEnv`:
     whether it reached the goal (round the wall), and where it ended.
 
-    Seeds of the wall test's teacher (``python -c "from tests.maze_envs import *; [print(s, wall_detour_end(train_udpo(
-    WallMazeEnv, 20_000, seed=s, planner_coef=0.0))) for s in range(4)]"``).
+    Seeds of the wall test's teacher (UDPO's defaults, ``python -c "from tests.maze_envs import *; [print(s,
+    wall_detour_end(train_udpo(WallMazeEnv, 20_000, seed=s, planner_coef=None))) for s in range(4)]"``).
     """
     env = WallMazeEnv()
     obs, _ = env.reset(options={"start": WALL_START, "goal": WALL_GOAL})
@@ -167,15 +167,28 @@ UDPO_SETTINGS: dict[str, Any] = {
 
 @functools.cache
 def train_udpo(
-    env_class: type[gym.Env], total_timesteps: int, seed: int = 0, planner_coef: float = 1e-2, plan_target: str = "buffer"
+    env_class: type[gym.Env],
+    total_timesteps: int,
+    seed: int = 0,
+    planner_coef: float | None = 1e-2,
+    plan_target: str = "buffer",
 ) -> UDPO:
-    """UDPO + HER with the small settings that solve the tiny test envs (cached per process)."""
+    """
+    UDPO + HER with the small settings that solve the tiny test envs (cached per process).
+
+    :param env_class: the env
+    :param total_timesteps: env steps
+    :param seed: the seed
+    :param planner_coef: lambda; None: UDPO's default (1e-2, the paper's, is what the point-env tests were written with)
+    :param plan_target: what the planner's likelihood term fits
+    """
+    lambda_kwargs = {} if planner_coef is None else {"planner_coef": planner_coef}
     model = UDPO(
         "MultiInputPolicy",
         Monitor(env_class()),
         **SMALL_HER_SETTINGS,
         **UDPO_SETTINGS,
-        planner_coef=planner_coef,
+        **lambda_kwargs,
         plan_target=plan_target,
         seed=seed,
     )

@@ -7,7 +7,8 @@ evaluation: cross-wall episodes (won), paths from below the gap on one side to b
 share of the HER ``future`` pairs, blocked moves. ``--landmarks`` also distils a goal planner (the test's student by
 default) and prints where its landmark path from (-0.5, -0.6) to (0.5, -0.6) crosses ``x = 0``, snapped and not.
 
-Measured (``zoo_runs/landmarks/logs/wall_maze_teacher_*.log``): with the default ``planner_coef=1e-2`` UDPO does not
+Measured (``zoo_runs/landmarks/logs/wall_maze_teacher_*.log``, before UDPO's default became 1e-3 in
+``zoo_runs/sources/lambda``): with the paper's ``planner_coef=1e-2`` UDPO does not
 learn the detour in 20k steps (0/4 deterministic on seeds 0-2; sampled actions 0-18/20, unstable), SAC + HER with the
 same settings does by 12k on seeds 0-2 (4/4, 19-20/20). UDPO with ``planner_coef=0`` does (3/4 by 12k-16k on seeds
 0-2), and the landmarks distilled from it go around with a [256, 256] student (5000 gradient steps), not with a
