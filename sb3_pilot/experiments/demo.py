@@ -35,12 +35,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from sb3_pilot.experiments.challenges import CHALLENGES, REUSE_SHIPPED, only_stages, run_challenge
 from sb3_pilot.experiments.challenges.definitions import HER, PILOT_DISPLACEMENT, PLANNER_TRANSFER
 from sb3_pilot.experiments.challenges.stages import REPO_DIR
 from sb3_pilot.experiments.plots import plot_challenge
+from sb3_pilot.experiments.statistics import run_scores
 
 CHALLENGE = "high-dim-action"
 #: The named budget of ``make demo`` (``BUDGETS["demo"]``, ``CHALLENGES["high-dim-action"].steps["demo"]``).
@@ -98,8 +97,8 @@ def planner_transfer(root: str, seed: int, source_steps: int | None, target_step
 
 
 def _areas(summary: dict[str, Any], method: str) -> list[float]:
-    """The area under the success curve (mean success over the evaluations) of each seed of ``method``."""
-    return [float(np.mean(run["success_rate"])) for run in summary["methods"][method]["runs"]]
+    """The area under the success curve of each seed of ``method`` (:func:`~sb3_pilot.experiments.statistics.run_scores`)."""
+    return [run_scores(run["timesteps"], run["success_rate"])["area"] for run in summary["methods"][method]["runs"]]
 
 
 def reward_bonus(root: str, seeds: int, steps: int | None) -> list[Path]:

@@ -57,8 +57,9 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
       paper's 1e-2 (measured, ``zoo_runs/sources/lambda``, 3-4 seeds a task): the term pulls the plan towards the
       buffer's moves; at 1e-2 that pull kept UDPO from the detour SAC + HER learns in a walled maze, and the
       preset's 5e-3 slowed it on Point-Locomotion (90% success at 1.4x SAC + HER's steps). At 1e-3 UDPO learnt
-      FetchReach and the walled maze as fast as or faster than at 1e-2, Point-Locomotion faster than at 5e-3 (90%
-      at 50k / 50k / 60k against 50k / 70k / 70k), and its state planner transfers as well (High-Dim-Action).
+      FetchReach and the walled maze no slower than at 1e-2 and Point-Locomotion no slower than at 5e-3 (90% at 50k
+      / 50k / 60k against 50k / 70k / 70k; hints of faster, the intervals overlap), and its state planner transfers
+      as well (High-Dim-Action).
       ``lambda = 0`` learns the source tasks but not a state planner: its plans are no next states (planner-mean
       error 35-62 against 0.6-0.8 at 1e-3 on FetchReach) and the planner transfers nothing (High-Dim-Action: 0.00
       success against 1.00). ``plan_target`` says which ``s'_target``:

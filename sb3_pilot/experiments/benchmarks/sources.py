@@ -20,13 +20,11 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from sb3_pilot.experiments.challenges import Challenge, ZooTrain, run_challenge
 from sb3_pilot.experiments.challenges.definitions import RL_ZOO_FETCH_NORMALIZED
-from sb3_pilot.experiments.challenges.stages import StageContext
 from sb3_pilot.experiments.statistics import MIN_SEEDS, REPS, method_statistics
 
 SOURCE_TASKS = ("Pilot/FetchReach-v0", "Pilot/FetchPush-v0", "Pilot/Reacher-v0", "Pilot/Maze2D-v0", "Pilot/PointLocomotion-v0")
@@ -39,31 +37,8 @@ SMOKE_STEPS = {"Pilot/FetchPush-v0": 500, "Pilot/PointLocomotion-v0": 2100}
 TRAIN_ENV_KWARGS: dict[str, dict[str, Any]] = {"Pilot/Maze2D-v0": {"goal_distribution": "uniform"}}
 #: Task options of the evaluation env: Maze2D is evaluated on the far goal (the paper's hard case) only.
 EVAL_ENV_KWARGS: dict[str, dict[str, Any]] = {"Pilot/Maze2D-v0": {"goal_distribution": "far"}}
-#: Settings per task at the budgets with ``fast`` (both methods alike), beside the Fetch tasks' RL-Zoo settings.
-#: (Maze2D ran once with 64x64 networks, chosen from SAC + HER's probes for speed: SAC + HER reached 90% on 5/5 seeds,
-#: UDPO on 0/5, while UDPO with SB3's 256x256 reached 1.0 at 12k on seed 0: zoo_runs/sources/maze2d-64x64.)
-FAST_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {}
 #: UDPO keeps pace with HER when its IQM steps to 90% success are at most this many times SAC + HER's (issue 21).
 AS_FAST = 1.1
-
-
-@dataclass(frozen=True)
-class SourceTrain(ZooTrain):
-    """
-    :class:`ZooTrain` whose evaluation env may take other task options than its training env (the zoo's
-    ``--eval-env-kwargs``).
-
-    :param eval_env_kwargs: keyword arguments of the evaluated task (empty: ``env_kwargs``)
-    """
-
-    eval_env_kwargs: dict[str, Any] = field(default_factory=dict)
-
-    def zoo_args(self, ctx: StageContext, stage_dir: Path) -> list[str]:
-        """:meth:`ZooTrain.zoo_args`, then ``--eval-env-kwargs``."""
-        args = super().zoo_args(ctx, stage_dir)
-        if self.eval_env_kwargs:
-            args += ["--eval-env-kwargs", *(f"{key}:{value!r}" for key, value in self.eval_env_kwargs.items())]
-        return args
 
 
 def source_challenge(env_id: str) -> Challenge:
@@ -76,11 +51,11 @@ def source_challenge(env_id: str) -> Challenge:
         f"UDPO + HER vs SAC + HER on the source task {env_id}, same budget",
         env_id,
         tuple(
-            SourceTrain(stage, algo, env_id, conf, method=method, env_kwargs=env_kwargs, eval_env_kwargs=eval_env_kwargs)
+            ZooTrain(stage, algo, env_id, conf, method=method, env_kwargs=env_kwargs, eval_env_kwargs=eval_env_kwargs)
             for stage, algo, conf, method in (("udpo", "udpo", "udpo.yml", UDPO_HER), ("her", "sac", "sac.yml", SAC_HER))
         ),
         steps={"smoke": {"udpo": smoke, "her": smoke}},
-        fast_hyperparams=FAST_HYPERPARAMS.get(env_id, RL_ZOO_FETCH_NORMALIZED if "Fetch" in env_id else {}),
+        fast_hyperparams=RL_ZOO_FETCH_NORMALIZED if "Fetch" in env_id else {},
     )
 
 

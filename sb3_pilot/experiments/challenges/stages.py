@@ -206,6 +206,8 @@ class ZooTrain:
     :param method: label in the summary if this stage is a compared method on the target task
     :param save_replay_buffer: keep the replay buffer (a later :class:`Distill` reads it)
     :param env_kwargs: keyword arguments of the task (the zoo's ``--env-kwargs``), for training and evaluation
+    :param eval_env_kwargs: keyword arguments of the evaluated task if they differ (the zoo's ``--eval-env-kwargs``;
+        empty: ``env_kwargs``), e.g. Maze2D trained on uniform goals and evaluated on the far goal
     """
 
     name: str
@@ -217,6 +219,7 @@ class ZooTrain:
     method: str | None = None
     save_replay_buffer: bool = False
     env_kwargs: dict[str, Any] = field(default_factory=dict)
+    eval_env_kwargs: dict[str, Any] = field(default_factory=dict)
 
     def output(self, stage_dir: Path) -> Path:
         """The trained model's zip."""
@@ -260,6 +263,8 @@ class ZooTrain:
         args += ["-params", *(f"{key}:{value!r}" for key, value in hyperparams.items())]
         if self.env_kwargs:
             args += ["--env-kwargs", *(f"{key}:{value!r}" for key, value in self.env_kwargs.items())]
+        if self.eval_env_kwargs:
+            args += ["--eval-env-kwargs", *(f"{key}:{value!r}" for key, value in self.eval_env_kwargs.items())]
         return [*args, "--save-replay-buffer"] if self.save_replay_buffer else args
 
     def config(self, ctx: StageContext, stage_dir: Path) -> dict[str, Any]:

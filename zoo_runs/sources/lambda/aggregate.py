@@ -59,19 +59,26 @@ def last_plan_error(path: Path) -> float | None:
     return round(float(values[-1]), 3) if values else None
 
 
+def scratch_runs(scratch: Path, folder: str, env_id: str, coefs: tuple[str, ...]) -> dict[str, list[dict]]:
+    """The zoo runs ``scratch/<folder>/lam_<coef>_seed_<k>`` (seeds 0-2) and their logs, by ``UDPO lambda <coef>``."""
+    methods = {}
+    for coef in coefs:
+        runs = []
+        for seed in range(3):
+            path = scratch / f"{folder}/lam_{coef}_seed_{seed}/udpo/{env_id.replace('/', '-')}_1/evaluations.npz"
+            if path.exists():
+                plan_error = last_plan_error(scratch / f"{folder}_lam_{coef}_seed_{seed}.log")
+                runs.append({"seed": seed, **npz_curve(path), "final_plan_error": plan_error})
+        if runs:
+            methods[f"UDPO lambda {float(coef):g}"] = runs
+    return methods
+
+
 def collect(scratch: Path) -> dict:
     tasks: dict = {}
     # a. FetchReach, 10k steps
     fetch = tasks.setdefault("Pilot/FetchReach-v0", {})
-    for coef in ("0.0", "0.001", "0.01"):
-        runs = []
-        for seed in range(3):
-            path = scratch / f"fetchreach/lam_{coef}_seed_{seed}/udpo/Pilot-FetchReach-v0_1/evaluations.npz"
-            if path.exists():
-                plan_error = last_plan_error(scratch / f"fetchreach_lam_{coef}_seed_{seed}.log")
-                runs.append({"seed": seed, **npz_curve(path), "final_plan_error": plan_error})
-        if runs:
-            fetch[f"UDPO lambda {float(coef):g}"] = runs
+    fetch.update(scratch_runs(scratch, "fetchreach", "Pilot/FetchReach-v0", ("0.0", "0.001", "0.01")))
     fetch["SAC+HER (sources table)"] = summary_runs(SOURCES / "source-fetchreach/summary.json", "SAC+HER")
     # b. wall maze: cross-wall successes of 4 pairs, deterministic once + sampled 5 times (24 episodes)
     wall = tasks.setdefault("wall maze (tests/maze_envs.py)", {})
@@ -103,15 +110,7 @@ def collect(scratch: Path) -> dict:
         }
         for s in range(3)
     ]
-    for coef in ("0.001", "0.01"):
-        runs = []
-        for seed in range(3):
-            path = scratch / f"pl/lam_{coef}_seed_{seed}/udpo/Pilot-PointLocomotion-v0_1/evaluations.npz"
-            if path.exists():
-                plan_error = last_plan_error(scratch / f"pl_lam_{coef}_seed_{seed}.log")
-                runs.append({"seed": seed, **npz_curve(path), "final_plan_error": plan_error})
-        if runs:
-            point[f"UDPO lambda {float(coef):g}"] = runs
+    point.update(scratch_runs(scratch, "pl", "Pilot/PointLocomotion-v0", ("0.001", "0.01")))
     summary = SOURCES / "source-pointlocomotion/summary.json"
     point["UDPO lambda 0.005 (preset, sources table, first 80k)"] = summary_runs(summary, "UDPO+HER", 80_000)
     point["SAC+HER (sources table, first 80k)"] = summary_runs(summary, "SAC+HER", 80_000)
