@@ -45,6 +45,23 @@ Params = Callable[[dict[str, Path]], dict[str, Any]]
 
 
 @dataclass(frozen=True)
+class Import:
+    """
+    A class or function in a stage's ``-params`` (e.g. a ``features_extractor_class`` of ``policy_kwargs``), written on
+    the zoo's command line as the expression that imports it (the zoo evaluates ``-params`` values).
+
+    :param module: the module that defines it
+    :param name: its name in the module
+    """
+
+    module: str
+    name: str
+
+    def __repr__(self) -> str:
+        return f"__import__({self.module!r}, fromlist=[{self.name!r}]).{self.name}"
+
+
+@dataclass(frozen=True)
 class Budget:
     """
     How much a challenge run may spend, shared by the four challenges (their step counts are their own).
@@ -247,7 +264,7 @@ class ZooTrain:
         # HER cannot sample before an episode has ended: SB3's default (100) is too early with 4 x 500-step envs
         env_kwargs = self.env_kwargs or entry.get("env_kwargs", {})  # the zoo's --env-kwargs replace the YAML's
         episode_steps = env_kwargs.get("max_episode_steps") or gym.spec(self.env_id).max_episode_steps or 1
-        first_episodes = entry.get("n_envs", 1) * episode_steps
+        first_episodes = hyperparams.get("n_envs", entry.get("n_envs", 1)) * episode_steps
         if first_episodes > hyperparams.get("learning_starts", entry.get("learning_starts", 100)):
             hyperparams["learning_starts"] = first_episodes
         # -params callback replaces the YAML's, as in the zoo: so the YAML's (MEGA's, sac_mega.yml) is kept unless the
