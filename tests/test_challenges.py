@@ -186,3 +186,27 @@ def test_only_stages_keeps_what_they_read_from(capsys: pytest.CaptureFixture[str
     with pytest.raises(SystemExit):
         challenges_main(["maze-car", "--stages", "baseline"])
     assert "['baseline'] are not stages of maze-car" in capsys.readouterr().err
+
+
+def test_complex_morph_recipe_is_every_methods(tmp_path: Path) -> None:
+    """At the cpu budget every Ant method trains with the same recipe (goal-relative inputs, lean SAC): only the bonus
+    and MEGA's wrapper differ; the class in ``policy_kwargs`` reaches the zoo as an expression it evaluates."""
+    from sb3_pilot.common.torch_layers import GoalRelativeExtractor
+    from sb3_pilot.experiments.challenges.definitions import BUDGETS
+    from sb3_pilot.experiments.challenges.stages import Import, StageContext
+
+    assert eval(repr(Import("sb3_pilot.common.torch_layers", "GoalRelativeExtractor"))) is GoalRelativeExtractor
+    challenge = CHALLENGES["complex-morph"]
+    ctx = StageContext(tmp_path, 0, BUDGETS["cpu"], challenge.steps["cpu"], challenge.fast_hyperparams)
+    ctx.outputs = {stage.name: stage.output(tmp_path / stage.name) for stage in challenge.stages}
+
+    def params(name: str) -> dict[str, str]:
+        stage = next(stage for stage in challenge.stages if stage.name == name)
+        args = stage.zoo_args(ctx, tmp_path / name)
+        assert args[args.index("--algo") + 1] == "lean_sac" and args[args.index("-n") + 1] == "300000"
+        values = dict(arg.split(":", 1) for arg in args[args.index("-params") + 1 :])
+        return {key: value for key, value in values.items() if key not in ("env_wrapper", "callback")}
+
+    her = params("her")
+    assert "GoalRelativeExtractor" in her["policy_kwargs"] and her["n_envs"] == "2" and her["gamma"] == "0.98"
+    assert all(params(name) == her for name in ("pilot", "pilot_disp", "mega"))
