@@ -149,6 +149,31 @@ def test_composes_with_the_bonus_and_vec_normalize() -> None:
     assert np.any(reward(data) % 1 != 0)  # the bonus is there
 
 
+def test_go_explore_stores_the_actions_taken() -> None:
+    """Go-explore: after the behaviour goal, random actions are taken, and the replay buffer stores those actions."""
+
+    class Counting(MegaCallback):
+        explored = 0
+
+        def _on_step(self) -> bool:
+            self.explored += int(self.goal_wrapper.explored.sum())
+            return super()._on_step()
+
+    env = MegaGoalWrapper(DummyVecEnv([PointGoalEnv] * 2), success_distance=0.5)
+    mega = Counting(go_explore=1.0, max_episode_steps=25)
+    model = SAC("MultiInputPolicy", env, replay_buffer_class=HerReplayBuffer, **FAST)
+    model.learn(600, callback=mega)
+    assert mega.explored > 50 and env.go_explore_rate == 0.0  # off again after learn
+    buffer, n = model.replay_buffer, model.replay_buffer.pos
+    velocity, next_velocity = buffer.observations["observation"][:n, :, 2:], buffer.next_observations["observation"][:n, :, 2:]
+    # v' = damping v + force_scale a: the stored action is the one the env executed
+    np.testing.assert_allclose(next_velocity, 0.5 * velocity + 0.1 * buffer.actions[:n], atol=1e-5)
+    with pytest.raises(ValueError, match="bounded Box action space"):
+        model = SAC("MultiInputPolicy", MegaGoalWrapper(maze_venv()), replay_buffer_class=HerReplayBuffer, **FAST)
+        model.action_space = model.env.action_space = spaces.Box(-np.inf, np.inf, (2,))
+        model.learn(10, callback=MegaCallback())
+
+
 def test_bad_input_is_refused_before_training() -> None:
     with pytest.raises(ValueError, match="needs a goal env"):
         MegaGoalWrapper(DummyVecEnv([lambda: gym.make("Pendulum-v1")]))
@@ -185,6 +210,8 @@ def test_bad_input_is_refused_before_training() -> None:
         PPO("MultiInputPolicy", MegaGoalWrapper(maze_venv()), n_steps=64, device="cpu").learn(10, callback=MegaCallback())
     with pytest.raises(ValueError, match="success_bounds"):
         MegaCallback(success_bounds=(0.7, 0.3))
+    with pytest.raises(ValueError, match="go_explore"):
+        MegaCallback(go_explore=-0.1)
 
 
 def test_zoo_yaml_entry(tmp_path: Path) -> None:

@@ -69,6 +69,13 @@ class MegaGoalWrapper(VecEnvWrapper):
     ``HerReplayBuffer`` relabels those transitions like any other. Without a source (an evaluation env, or after
     ``learn``), episodes keep the env's goals and the wrapper changes nothing.
 
+    Go-explore (mrl's ``go_eexplore``): once an episode has reached its behaviour goal, each of its steps takes a
+    uniform random action with probability ``min(1, go_explore_rate x n)``, ``n`` the episode's steps so far within
+    ``success_distance`` of ``g_b``: the agent walks to the frontier, then explores beyond it. The source sets the
+    rate; the random actions of the last step are in ``explored`` / ``explored_actions`` (in ``[-1, 1]``, as SB3's
+    replay buffer stores Box actions), from which :class:`~sb3_pilot.baselines.MegaCallback` makes the stored actions
+    the executed ones.
+
     It works on raw goals: place it inside ``VecNormalize`` (the RL Zoo's ``vec_env_wrapper`` is), and outside any
     reward wrapper whose ``compute_reward`` should see the behaviour goal (``PilotBonusWrapper``: the bonus is then
     that of ``g_b``). The rewards come from ``env_method("compute_reward", ..., indices=[0])``, as in
@@ -97,6 +104,11 @@ class MegaGoalWrapper(VecEnvWrapper):
         # which envs' current episodes pursue a behaviour goal, and which have reached it
         self.replaced = np.zeros(self.num_envs, dtype=bool)
         self.reached = np.zeros(self.num_envs, dtype=bool)
+        # go-explore: the rate (0: off), each episode's steps at its behaviour goal, and the last step's random actions
+        self.go_explore_rate = 0.0
+        self.steps_at_goal = np.zeros(self.num_envs)
+        self.explored = np.zeros(self.num_envs, dtype=bool)
+        self.explored_actions = np.zeros((0, *self.action_space.shape), dtype=np.float32)
 
     def _start_episodes(self, observations: dict[str, np.ndarray], env_indices: np.ndarray) -> None:
         """
@@ -107,6 +119,7 @@ class MegaGoalWrapper(VecEnvWrapper):
         """
         self.replaced[env_indices] = False
         self.reached[env_indices] = False
+        self.steps_at_goal[env_indices] = 0
         if self.source is None or len(env_indices) == 0:
             return
         goals = self.source.select_goals({key: value[env_indices] for key, value in observations.items()})
@@ -121,6 +134,17 @@ class MegaGoalWrapper(VecEnvWrapper):
         assert isinstance(observations, dict)
         self._start_episodes(observations, np.arange(self.num_envs))
         return observations
+
+    def step_async(self, actions: np.ndarray) -> None:
+        probability = np.minimum(1.0, self.go_explore_rate * self.steps_at_goal) if self.source is not None else 0.0
+        self.explored = np.random.random(self.num_envs) < probability
+        if self.explored.any():
+            assert isinstance(self.action_space, spaces.Box)  # MegaCallback checks it when go-explore is on
+            low, high = self.action_space.low, self.action_space.high
+            self.explored_actions = np.random.uniform(-1.0, 1.0, (self.explored.sum(), *low.shape)).astype(np.float32)
+            actions = actions.copy()
+            actions[self.explored] = low + 0.5 * (self.explored_actions + 1.0) * (high - low)
+        self.venv.step_async(actions)
 
     def step_wait(self) -> VecEnvStepReturn:
         observations, rewards, dones, infos = self.venv.step_wait()
@@ -138,6 +162,7 @@ class MegaGoalWrapper(VecEnvWrapper):
             rewards[rows] = self.venv.env_method("compute_reward", achieved, goals, [infos[i] for i in rows], indices=[0])[0]
             success = np.linalg.norm(achieved - goals, axis=-1) <= self.success_distance
             self.reached[rows] |= success
+            self.steps_at_goal[rows] += success
             for row, i in enumerate(rows):
                 if "is_success" in infos[i]:
                     infos[i][ENV_IS_SUCCESS] = infos[i]["is_success"]

@@ -6,6 +6,7 @@ from collections import deque
 
 import numpy as np
 import torch as th
+from gymnasium import spaces
 from stable_baselines3.common.buffers import DictReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnvWrapper, VecFrameStack, VecNormalize, VecTransposeImage, unwrap_vec_wrapper
@@ -29,6 +30,12 @@ class MegaCallback(BaseCallback):
     below ``-(1 - gamma^(0.8 T)) / (1 - gamma)`` with ``T = max_episode_steps``); at most ``success_bounds[0]`` it
     rises by 1, never above ``initial_cutoff``. Defaults are mrl's MEGA settings.
 
+    Go-explore as in mrl's MEGA runs (its ``go_eexplore``, on in them): once a training episode has reached its
+    behaviour goal, each further step acts uniformly at random with probability ``go_explore`` times the episode's
+    steps within reach of the goal so far (capped at 1); the replay buffer stores the actions taken. mrl adds this to
+    an epsilon-random rate of 0.1 that every one of its agents has (HER too); SAC explores by its entropy, so only
+    the go-explore part is added here. ``go_explore=0`` turns it off.
+
     The value is the minimum over the critic's Q-networks (SAC's target) at the deterministic action. Nothing of
     this callback is saved with the model: a model trained with it loads and runs like any other.
 
@@ -40,6 +47,8 @@ class MegaCallback(BaseCallback):
     :param success_bounds: shares of reached behaviour goals under / over which the cut-off rises / drops
         (mrl: 0.3, 0.7)
     :param max_episode_steps: episode length ``T`` of the lowest cut-off; None reads the env's ``TimeLimit``
+    :param go_explore: random-action probability added per step spent at the behaviour goal (mrl: 0.1; 0: off);
+        needs a bounded ``Box`` action space
     :param verbose: verbosity level
     """
 
@@ -52,6 +61,7 @@ class MegaCallback(BaseCallback):
         cutoff_window: int = 10,
         success_bounds: tuple[float, float] = (0.3, 0.7),
         max_episode_steps: int | None = None,
+        go_explore: float = 0.1,
         verbose: int = 0,
     ):
         super().__init__(verbose)
@@ -63,12 +73,14 @@ class MegaCallback(BaseCallback):
             raise ValueError(f"success_bounds must be (low, high) with 0 <= low < high <= 1, got {success_bounds!r}.")
         if max_episode_steps is not None:
             check_number("max_episode_steps", max_episode_steps, minimum=1, integer=True)
+        check_number("go_explore", go_explore, minimum=0)
         self.n_candidates = n_candidates
         self.density = KernelDensity(bandwidth)
         self.density_samples = density_samples
         self.initial_cutoff = initial_cutoff
         self.success_bounds = success_bounds
         self.max_episode_steps = max_episode_steps
+        self.go_explore = go_explore
         self.successes: deque[bool] = deque(maxlen=cutoff_window)
         self.goal_wrapper: MegaGoalWrapper | None = None
         # the observation-changing wrappers above MegaGoalWrapper, outermost first: what the policy sees of its goals
@@ -104,6 +116,12 @@ class MegaCallback(BaseCallback):
                 "MegaCallback reads the value Q(s, g, pi(s, g)) from the policy's critic (SAC, TD3, DDPG, UDPO); "
                 f"{type(self.model.policy).__name__} has none."
             )
+        space = self.goal_wrapper.action_space
+        if self.go_explore > 0 and not (isinstance(space, spaces.Box) and np.all(np.isfinite([space.low, space.high]))):
+            raise ValueError(
+                f"MEGA's go-explore draws uniform random actions: it needs a bounded Box action space, got {space} "
+                "(pass go_explore=0 to turn it off)."
+            )
         horizon = self.max_episode_steps or self._env_horizon()
         discount = min(self.model.gamma, 0.99)  # type: ignore[attr-defined]
         self.lowest_cutoff = -(1 - discount ** (0.8 * horizon)) / (1 - discount)
@@ -120,12 +138,21 @@ class MegaCallback(BaseCallback):
     def _on_training_start(self) -> None:
         assert self.goal_wrapper is not None
         self.goal_wrapper.source = self
+        self.goal_wrapper.go_explore_rate = self.go_explore
 
     def _on_training_end(self) -> None:
         assert self.goal_wrapper is not None
         self.goal_wrapper.source = None
+        self.goal_wrapper.go_explore_rate = 0.0
 
     def _on_step(self) -> bool:
+        # called between the env step and the replay buffer's add (SB3's off-policy collect_rollouts): the stored
+        # actions become the go-explore actions the env executed
+        assert self.goal_wrapper is not None
+        explored = self.goal_wrapper.explored
+        if explored.any():
+            self.locals["buffer_actions"][explored] = self.goal_wrapper.explored_actions
+        self.logger.record_mean("mega/go_explore_share", float(explored.mean()))
         return True
 
     def _buffer_achieved_goals(self) -> np.ndarray:
