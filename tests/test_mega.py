@@ -242,5 +242,5 @@ def test_yaml_entries_are_sacs_plus_mega(folder: str) -> None:
     assert set(mega) == {"Pilot/Maze2D-v0", "Pilot/AntMaze-v0", "Pilot/AntLocomotion-v0", "Pilot/Maze2DCar-v0"}
     for env_id, entry in mega.items():
         assert entry.pop("vec_env_wrapper") == "sb3_pilot.baselines.MegaGoalWrapper", env_id
-        assert entry.pop("callback") == "sb3_pilot.baselines.MegaCallback", env_id
+        assert entry.pop("callback") == [{"sb3_pilot.baselines.MegaCallback": {"go_explore": 0.1}}], env_id
         assert entry == sac[env_id], env_id
