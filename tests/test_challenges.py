@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -210,3 +211,23 @@ def test_complex_morph_recipe_is_every_methods(tmp_path: Path) -> None:
     her = params("her")
     assert "GoalRelativeExtractor" in her["policy_kwargs"] and her["n_envs"] == "2" and her["gamma"] == "0.98"
     assert all(params(name) == her for name in ("pilot", "pilot_disp", "mega"))
+
+
+def test_recorded_seeds_outlive_their_models(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A fresh clone has summary.json but not the gitignored models: more seeds run only the new ones."""
+    challenge = only_stages(CHALLENGES["maze-car"], ["her", "pilot_disp"])
+    first = run_challenge(challenge, "smoke", seeds=[0], root=tmp_path)
+    shutil.rmtree(tmp_path / "maze-car" / "models")
+    capsys.readouterr()
+    both = run_challenge(challenge, "smoke", seeds=[0, 1], root=tmp_path)
+    out = capsys.readouterr().out
+    assert out.count("recorded in summary.json") == 4 and "seed 1 her: finished" in out and "seed 0 her: finished" not in out
+    for method, result in both["methods"].items():
+        assert [run["seed"] for run in result["runs"]] == [0, 1]
+        assert result["runs"][0] == first["methods"][method]["runs"][0]
+    assert both["stages"]["seed_0/her"] == first["stages"]["seed_0/her"]
+    # a new stage reading from a recorded one (the planner, whose file is gone) runs it again, and what it reads from
+    run_challenge(only_stages(CHALLENGES["maze-car"], ["her", "pilot_disp", "pilot"]), "smoke", seeds=[0], root=tmp_path)
+    out = capsys.readouterr().out
+    assert "seed 0 source: finished" in out and "seed 0 distill: finished" in out and "seed 0 pilot: finished" in out
+    assert out.count("recorded in summary.json") == 2  # her and pilot_disp: nothing reads from them

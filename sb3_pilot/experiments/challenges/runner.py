@@ -61,6 +61,10 @@ def summarize(
             continue
         runs = []
         for seed in seeds:
+            recorded = markers.get(f"seed_{seed}/{stage.name}", {}).get("recorded")
+            if recorded is not None:  # its models are gone: the run as an earlier summary.json recorded it
+                runs.append(recorded)
+                continue
             stage_dir = out_dir / "models" / f"seed_{seed}" / stage.name
             timesteps, success_rate = stage.curve(stage_dir)
             run = {"seed": seed, "timesteps": timesteps, "success_rate": success_rate, **steps_to(timesteps, success_rate)}
@@ -78,13 +82,12 @@ def summarize(
             methods[stage.method]["guidance"] = stage.rule
     stages: dict[str, Any] = {}
     for key, marker in markers.items():
-        stage_dir = out_dir / "models" / key
-        csv = stage_dir / "progress.csv"
+        csv = out_dir / "models" / key / "progress.csv"
         stages[key] = {
             "config_hash": marker["config_hash"],
             "wall_time_s": round(marker["wall_time_s"], 1),
             "config": marker["config"],
-            "progress_csv": str(csv.relative_to(out_dir)) if csv.exists() else None,
+            "progress_csv": str(csv.relative_to(out_dir)) if csv.exists() else marker.get("progress_csv"),
         }
     return {
         "challenge": challenge.name,
@@ -126,7 +129,9 @@ def plan(
 ) -> tuple[list[StageTask], dict[str, dict[str, Any]]]:
     """
     What is left to run: every stage's configuration and hash (from those of the stages it reads from), and the
-    stages whose marker holds that hash (finished: skipped).
+    stages whose marker holds that hash (finished: skipped). A stage whose folder is gone (its models are gitignored:
+    a fresh clone) but which the challenge's ``summary.json`` records with that hash is finished too (``recorded``:
+    the summary keeps its run), unless a stage left to run reads from it.
 
     :param challenge: the challenge
     :param seeds: the seeds
@@ -135,7 +140,12 @@ def plan(
     :return: the stages to run (a stage after those it reads from) and the markers of the finished ones
     """
     graph = stage_graph(challenge, seeds)
-    tasks: list[StageTask] = []
+    summary_path = out_dir / SUMMARY
+    record = json.loads(summary_path.read_text()) if summary_path.exists() else {"methods": {}, "stages": {}}
+    recorded_runs = {
+        f"seed_{run['seed']}/{result['stage']}": run for result in record["methods"].values() for run in result["runs"]
+    }
+    todo: dict[str, StageTask] = {}
     finished: dict[str, dict[str, Any]] = {}
     for seed in seeds:
         seed_dir = out_dir / "models" / f"seed_{seed}"
@@ -147,13 +157,21 @@ def plan(
             config = portable(stage.config(ctx, stage_dir), out_dir)
             hashes[stage.name] = digest = config_hash(config, [hashes[name] for name in stage.needs])
             marker_path = stage_dir / STAGE_MARKER
+            recorded = record["stages"].get(key, {})
             if marker_path.exists():
                 marker = json.loads(marker_path.read_text())
                 if marker["config_hash"] == digest:
                     finished[key] = {**marker, "skipped": True}
                     continue
-            tasks.append(StageTask(key, stage, ctx, stage_dir, config, digest, graph[key]))
-    return tasks, finished
+            elif recorded.get("config_hash") == digest and (stage.method is None or key in recorded_runs):
+                finished[key] = {**recorded, "skipped": True, "from_summary": True, "recorded": recorded_runs.get(key)}
+            todo[key] = StageTask(key, stage, ctx, stage_dir, config, digest, graph[key])
+    for key in reversed(graph):  # a recorded stage that a stage left to run reads from runs again
+        if key in todo and key not in finished:
+            for need in graph[key]:
+                if finished.get(need, {}).get("from_summary"):
+                    del finished[need]
+    return [task for key, task in todo.items() if key not in finished], finished
 
 
 def run_challenge(
@@ -259,7 +277,9 @@ def run_challenge(
 
     for done, (key, marker) in enumerate(markers.items(), 1):
         seed, stage = key.split("/")
-        print(f"{label(done)} {seed.replace('_', ' ')} {stage}: done ({marker['wall_time_s']:.0f} s), skipped", flush=True)
+        where = ", recorded in summary.json (its models are gone)" if marker.get("from_summary") else ""
+        took = f"done ({marker['wall_time_s']:.0f} s){where}, skipped"
+        print(f"{label(done)} {seed.replace('_', ' ')} {stage}: {took}", flush=True)
     out_dir.mkdir(parents=True, exist_ok=True)
     if markers:
         write_summary()
