@@ -133,14 +133,16 @@ def main() -> None:
     parser.add_argument("--eval-every", type=int, default=2000)
     parser.add_argument("--eval-episodes", type=int, default=20)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1: robust to a busy 2-core machine)")
-    parser.add_argument("--planner-coef", type=float, default=1e-2, help="UDPO's lambda")
+    parser.add_argument("--planner-coef", type=float, default=None, help="UDPO's lambda (default: UDPO's)")
     parser.add_argument("--plan-target", default="buffer", choices=("buffer", "policy"), help="UDPO's plan_target")
     args = parser.parse_args()
     if "sac" not in args.algos:
         parser.error("--algos must include sac: the ratios are to SB3's SAC")
     th.set_num_threads(args.threads)
     task = TASKS[args.task]
-    udpo_kwargs = dict(planner_coef=args.planner_coef, plan_target=args.plan_target)
+    udpo_kwargs: dict[str, Any] = dict(plan_target=args.plan_target)
+    if args.planner_coef is not None:
+        udpo_kwargs["planner_coef"] = args.planner_coef
     print(f"task={args.task} env={task.env_id} steps={args.steps} algos={args.algos} udpo_kwargs={udpo_kwargs}")
     ratios: dict[str, list[float]] = {algo: [] for algo in args.algos}
     for seed in args.seeds:
