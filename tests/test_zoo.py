@@ -32,6 +32,7 @@ from sb3_pilot.experiments.zoo import (
     sample_udpo_params,
 )
 from sb3_pilot.transfer import PilotBonusWrapper, PilotHerReplayBuffer, StatePlannerTransferCallback
+from sb3_pilot.transfer.state_planner import load_vec_normalize
 
 HYPERPARAMS = hyperparams_dir()
 PAPER_FILES = {"udpo.yml": "udpo", "sac.yml": "sac", "sac_pilot.yml": "sac"}
@@ -344,6 +345,20 @@ def test_train_enjoy_plot_cli(tmp_path: Path) -> None:
     plot = ("-a", "udpo", "-e", "Pilot/Maze2D-v0", "-f", "logs", "-y", "success", "-w", "1", "-o", str(png))
     run(*zoo, "plot_train", *plot, cwd=tmp_path)
     assert png.stat().st_size > 1000
+
+
+def test_checkpoints_carry_vec_normalize(tmp_path: Path) -> None:
+    """``--save-freq`` checkpoints of a normalised run save the statistics they were trained with, each its own."""
+    run(
+        *("-m", "sb3_pilot.experiments.zoo", "train", "--algo", "sac", "--env", "Pilot/Maze2D-v0", "-n", "200"),
+        *("-f", "logs", "--num-threads", "1", "--eval-freq", "-1", "--save-freq", "100"),
+        *("-params", "normalize:True", "learning_starts:50", "batch_size:16"),
+        cwd=tmp_path,
+    )
+    run_dir = tmp_path / "logs" / "sac" / "Pilot-Maze2D-v0_1"
+    stats = [load_vec_normalize(run_dir / f"rl_model_vecnormalize_{steps}_steps.pkl") for steps in (100, 200)]
+    assert (run_dir / "rl_model_100_steps.zip").is_file() and stats[0].obs_rms["observation"].count == pytest.approx(101)
+    assert stats[1].obs_rms["observation"].count == pytest.approx(201)
 
 
 def test_plain_rl_zoo3_train(tmp_path: Path) -> None:

@@ -5,7 +5,7 @@ RL-Zoo entry point: ``python -m sb3_pilot.experiments.zoo COMMAND [zoo flags]``,
 :func:`register` adds UDPO to the zoo as ``udpo`` (``rl_zoo3.ALGOS``, plus a hyperparameter sampler for
 ``--optimize``) and :class:`~sb3_pilot.sac.LeanSAC` as ``lean_sac`` (SAC's YAML and sampler), and registers the
 ``Pilot/`` tasks; :func:`main` then runs the zoo's own command, as the RL-Zoo
-docs do for SBX, so every zoo flag works. Four conveniences on top of ``python -m rl_zoo3.cli``:
+docs do for SBX, so every zoo flag works. Five conveniences on top of ``python -m rl_zoo3.cli``:
 
 - ``train`` without ``--conf-file`` reads this package's ``hyperparams/<algo>.yml`` for ``udpo`` and for any task
   that file has an entry for (every ``Pilot/`` task, gymnasium-robotics' ``FetchReach-v4``, ...), where the zoo
@@ -14,6 +14,8 @@ docs do for SBX, so every zoo flag works. Four conveniences on top of ``python -
   ``--conf-file cpu/udpo.yml`` or ``--conf-file sac_pilot.yml`` work from anywhere;
 - the evaluation env gets a YAML entry's ``env_kwargs`` as the training env does (the zoo gives it those of the
   command line only), unless ``--eval-env-kwargs`` says otherwise;
+- ``--save-freq`` checkpoints of a normalised run carry their ``VecNormalize`` statistics
+  (:class:`NormalizedCheckpointCallback`), which the zoo saves with the final model only;
 - ``plot_train -o FILE`` saves the figure (the zoo only calls ``plt.show()``), and ``-e Pilot/...`` finds the
   zoo's log folders (named ``Pilot-...``).
 
@@ -45,6 +47,7 @@ import optuna
 import rl_zoo3
 import yaml
 from gymnasium.envs.registration import EnvSpec, load_env_creator
+from stable_baselines3.common.callbacks import CheckpointCallback
 
 from sb3_pilot.envs import register_envs
 from sb3_pilot.experiments.evaluation import GoalEvalCallback
@@ -108,11 +111,22 @@ def _eval_env_like_training(preprocess: Callable[..., Any]) -> Callable[..., Any
     return wrapped
 
 
+class NormalizedCheckpointCallback(CheckpointCallback):
+    """
+    The zoo's ``--save-freq`` checkpoints, each with the ``VecNormalize`` statistics its model needs
+    (``rl_model_vecnormalize_<steps>_steps.pkl`` beside ``rl_model_<steps>_steps.zip``) when training normalises: the
+    zoo saves them with the final model only, so a checkpoint of a normalised run could not be evaluated.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, save_vecnormalize=True, **kwargs)
+
+
 def register() -> None:
     """
     Register the ``Pilot/`` tasks and gymnasium-robotics' tasks (whose own IDs ``hyperparams/`` also covers), UDPO
     as the zoo's ``udpo`` (model class, ``--optimize`` sampler), and :class:`GoalEvalCallback` as the zoo's evaluation
-    (``evaluations.npz`` gets ``final_distances``).
+    (``evaluations.npz`` gets ``final_distances``), and :class:`NormalizedCheckpointCallback` as its checkpoints.
     """
     import gymnasium_robotics
     from rl_zoo3 import ALGOS, exp_manager
@@ -126,6 +140,7 @@ def register() -> None:
     register_envs()
     gym.register_envs(gymnasium_robotics)
     exp_manager.EvalCallback = GoalEvalCallback  # the zoo's evaluations also record the final distance to the goal
+    exp_manager.CheckpointCallback = NormalizedCheckpointCallback
     if not hasattr(exp_manager.ExperimentManager._preprocess_hyperparams, "__wrapped__"):
         exp_manager.ExperimentManager._preprocess_hyperparams = _eval_env_like_training(
             exp_manager.ExperimentManager._preprocess_hyperparams
