@@ -163,7 +163,11 @@ def plan(
                 if marker["config_hash"] == digest:
                     finished[key] = {**marker, "skipped": True}
                     continue
-            elif recorded.get("config_hash") == digest and (stage.method is None or key in recorded_runs):
+            elif (
+                not stage_dir.exists()
+                and recorded.get("config_hash") == digest
+                and (stage.method is None or key in recorded_runs)
+            ):
                 finished[key] = {**recorded, "skipped": True, "from_summary": True, "recorded": recorded_runs.get(key)}
             todo[key] = StageTask(key, stage, ctx, stage_dir, config, digest, graph[key])
     for key in reversed(graph):  # a recorded stage that a stage left to run reads from runs again
