@@ -1,4 +1,7 @@
-"""The files shipped for Zero-shot Ant-Maze load on a fresh clone and guide the Ant; ``--reuse-shipped`` evaluates them."""
+"""
+The files shipped for Zero-shot Ant-Maze load on a fresh clone and guide the Ant; the shipped Fetch-Reach source reaches
+its goals; ``--reuse-shipped`` evaluates them.
+"""
 
 from __future__ import annotations
 
@@ -14,6 +17,8 @@ from sb3_pilot.envs import register_envs
 from sb3_pilot.experiments.ant_controller import load_controller
 from sb3_pilot.experiments.challenges import REUSE_SHIPPED, Shipped
 from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
+from sb3_pilot.experiments.challenges.definitions import FETCH_REACH_SOURCE, SOURCES_DIR
+from sb3_pilot.experiments.challenges.stages import load_zoo_model
 
 register_envs()
 SHIPPED_DIR = Path(__file__).resolve().parent.parent / "zoo_runs" / "zero-shot-ant-maze" / "controller"
@@ -25,7 +30,8 @@ def test_reuse_shipped_names_shipped_files():
     assert CONTROLLERS and PLANNERS
     for challenge in REUSE_SHIPPED.values():
         shipped = [stage.path for stage in challenge.stages if isinstance(stage, Shipped)]
-        assert shipped and all(path.is_file() and path.parent == SHIPPED_DIR for path in shipped)
+        assert shipped and all(path.is_file() for path in shipped)
+        assert all(SHIPPED_DIR in path.parents or SOURCES_DIR in path.parents for path in shipped)
 
 
 @pytest.mark.parametrize("controller", CONTROLLERS, ids=lambda path: path.name)
@@ -72,4 +78,30 @@ def test_reuse_shipped_smoke(tmp_path: Path):
 
 def test_reuse_shipped_only_where_shipped(tmp_path: Path):
     with pytest.raises(SystemExit):
-        challenges_main(["high-dim-action", "--reuse-shipped", "--root", str(tmp_path)])
+        challenges_main(["vec-to-image", "--reuse-shipped", "--root", str(tmp_path)])
+
+
+def test_shipped_fetch_reach_source_reaches():
+    """The shipped UDPO loads as the zoo saved it (its VecNormalize beside it) and reaches its goals on a fresh clone."""
+    model, vec_normalize = load_zoo_model(FETCH_REACH_SOURCE)  # on a DummyVecEnv of Pilot/FetchReach-v0
+    assert model.__class__.__name__ == "UDPO" and vec_normalize is not None and not vec_normalize.training
+    successes = []
+    vec_normalize.seed(0)
+    observation = vec_normalize.reset()
+    while len(successes) < 10:
+        action, _ = model.predict(observation, deterministic=True)
+        observation, _, dones, infos = vec_normalize.step(action)
+        successes += [info["is_success"] for info, done in zip(infos, dones, strict=True) if done]
+    assert np.mean(successes) >= 0.9
+
+
+def test_high_dim_action_reuse_shipped_smoke(tmp_path: Path):
+    """High-Dim-Action from the shipped source: no source stage runs, the target reuses the shipped state planner."""
+    challenges_main(["high-dim-action", "--reuse-shipped", "--budget", "smoke", "--root", str(tmp_path)])
+    summary = json.loads((tmp_path / "high-dim-action-shipped" / "summary.json").read_text())
+    assert set(summary["stages"]) == {"seed_0/source", "seed_0/pilot", "seed_0/her"}
+    shipped = "<repo>/zoo_runs/sources/shipped/fetchreach_seed0/"
+    assert summary["stages"]["seed_0/source"]["config"]["shipped"].startswith(shipped)
+    command = " ".join(summary["stages"]["seed_0/pilot"]["config"]["zoo"])
+    assert "StatePlannerTransferCallback" in command and shipped in command and "[64, 64]" in command
+    assert not list((tmp_path / "high-dim-action-shipped" / "models" / "seed_0" / "source").rglob("*.zip"))  # untrained

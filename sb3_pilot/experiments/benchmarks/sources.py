@@ -8,8 +8,9 @@ package's YAML, resumable, ``summary.json`` and ``success.png`` per task), then 
     python -m sb3_pilot.experiments.benchmarks.sources --table-only --root zoo_runs/sources
 
 The Fetch tasks use RL-Zoo's FetchReach settings with VecNormalize for both methods (``RL_ZOO_FETCH_NORMALIZED``, as
-the Fetch challenges), the others their ``hyperparams/<budget>`` entries; Maze2D trains on uniform starts and goals
-and is evaluated on the far goal (:data:`TRAIN_ENV_KWARGS`, :data:`EVAL_ENV_KWARGS`).
+the Fetch challenges), Reacher the same with one env (:data:`FAST_HYPERPARAMS`, :data:`CPU_STEPS`), the others their
+``hyperparams/<budget>`` entries; Maze2D trains on uniform starts and goals and is evaluated on the far goal
+(:data:`TRAIN_ENV_KWARGS`, :data:`EVAL_ENV_KWARGS`).
 The table (``ROOT/table.md``, every task with a summary under ROOT) gives per task and method the ``rliable`` IQM over
 seeds and stratified-bootstrap 95% interval of the steps to 50% / 90% success, the final success and the area under
 the success curve (:mod:`sb3_pilot.experiments.statistics`), and :func:`verdict`: UDPO "as fast as HER" when its IQM
@@ -37,6 +38,18 @@ SMOKE_STEPS = {"Pilot/FetchPush-v0": 500, "Pilot/PointLocomotion-v0": 2100}
 TRAIN_ENV_KWARGS: dict[str, dict[str, Any]] = {"Pilot/Maze2D-v0": {"goal_distribution": "uniform"}}
 #: Task options of the evaluation env: Maze2D is evaluated on the far goal (the paper's hard case) only.
 EVAL_ENV_KWARGS: dict[str, dict[str, Any]] = {"Pilot/Maze2D-v0": {"goal_distribution": "far"}}
+#: Settings over the ``hyperparams/<budget>`` entries at the smoke and cpu budgets, per task, both methods alike:
+#: RL-Zoo's FetchReach settings with VecNormalize on the Fetch tasks (as the Fetch challenges) and on Reacher, there with
+#: one env (one gradient step per env step). Reacher's recipe and budget were sized from SAC + HER's probes alone,
+#: before any UDPO run (zoo_runs/sources/reacher): the preset's 4 envs (one gradient step per 4 env steps), gamma 0.99
+#: and lr 3e-4 reached 0.00-0.20 success in 50k steps.
+FAST_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
+    "Pilot/FetchReach-v0": RL_ZOO_FETCH_NORMALIZED,
+    "Pilot/FetchPush-v0": RL_ZOO_FETCH_NORMALIZED,
+    "Pilot/Reacher-v0": {**RL_ZOO_FETCH_NORMALIZED, "*": {**RL_ZOO_FETCH_NORMALIZED["*"], "n_envs": 1}},
+}
+#: Env steps at the cpu budget where not the YAML's ``n_timesteps``, per task.
+CPU_STEPS = {"Pilot/Reacher-v0": 40_000}
 #: UDPO keeps pace with HER when its IQM steps to 90% success are at most this many times SAC + HER's (issue 21).
 AS_FAST = 1.1
 
@@ -54,8 +67,11 @@ def source_challenge(env_id: str) -> Challenge:
             ZooTrain(stage, algo, env_id, conf, method=method, env_kwargs=env_kwargs, eval_env_kwargs=eval_env_kwargs)
             for stage, algo, conf, method in (("udpo", "udpo", "udpo.yml", UDPO_HER), ("her", "sac", "sac.yml", SAC_HER))
         ),
-        steps={"smoke": {"udpo": smoke, "her": smoke}},
-        fast_hyperparams=RL_ZOO_FETCH_NORMALIZED if "Fetch" in env_id else {},
+        steps={
+            "smoke": {"udpo": smoke, "her": smoke},
+            **({"cpu": {"udpo": CPU_STEPS[env_id], "her": CPU_STEPS[env_id]}} if env_id in CPU_STEPS else {}),
+        },
+        fast_hyperparams=FAST_HYPERPARAMS.get(env_id, {}),
     )
 
 

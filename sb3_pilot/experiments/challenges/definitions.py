@@ -259,6 +259,13 @@ MAZE_CAR_STEPS = {
     "cpu": {"source": 20_000, "pilot": 20_000, "pilot_disp": 20_000, "her": 20_000, "mega": 20_000},
 }
 
+HIGH_DIM_ACTION_STAGES = _high_dim_stages("Pilot/FetchReach-v0", "Pilot/FetchReachHighDim-v0")
+HIGH_DIM_ACTION_STEPS = {
+    "smoke": {"source": 400, "pilot": 300, "her": 300},
+    "demo": {"source": 8000, "pilot": 4000, "her": 4000},
+    "cpu": {"source": 8000, "pilot": 8000, "her": 8000},
+}
+
 CHALLENGES: dict[str, Challenge] = {
     challenge.name: challenge
     for challenge in (
@@ -266,12 +273,8 @@ CHALLENGES: dict[str, Challenge] = {
             "high-dim-action",
             "UDPO on Fetch-Reach -> its state planner, frozen, in a UDPO on Fetch-Reach-High-Dim, vs SAC+HER",
             "Pilot/FetchReachHighDim-v0",
-            _high_dim_stages("Pilot/FetchReach-v0", "Pilot/FetchReachHighDim-v0"),
-            steps={
-                "smoke": {"source": 400, "pilot": 300, "her": 300},
-                "demo": {"source": 8000, "pilot": 4000, "her": 4000},
-                "cpu": {"source": 8000, "pilot": 8000, "her": 8000},
-            },
+            HIGH_DIM_ACTION_STAGES,
+            steps=HIGH_DIM_ACTION_STEPS,
             fast_hyperparams=RL_ZOO_FETCH_NORMALIZED,
         ),
         Challenge(
@@ -387,6 +390,18 @@ CHALLENGES: dict[str, Challenge] = {
 SHIPPED_DIR = REPO_DIR / "zoo_runs" / "zero-shot-ant-maze" / "controller"
 #: The Maze2D goal planner Maze-Car's ``--reuse-shipped`` run shares between its seeds.
 MAZE_CAR_PLANNER = SHIPPED_DIR / "maze2d_planner.pt"
+#: The trained sources shipped in the repository, laid out as the zoo saves a run (``zoo_runs/sources/shipped/README.md``
+#: says how each was made): UDPO on Fetch-Reach (the sources benchmark's recipe, seed 0), with its ``VecNormalize``.
+SOURCES_DIR = REPO_DIR / "zoo_runs" / "sources" / "shipped"
+FETCH_REACH_SOURCE = SOURCES_DIR / "fetchreach_seed0" / "udpo" / "Pilot-FetchReach-v0_1" / "Pilot-FetchReach-v0.zip"
+
+
+def _shipped_planner_transfer(outputs: dict[str, Path]) -> dict[str, Any]:
+    """:func:`_state_planner_transfer` of the shipped Fetch-Reach source: the target's networks are its (64x64) size."""
+    transfer = _state_planner_transfer(outputs)
+    return {**transfer, "policy_kwargs": {**transfer["policy_kwargs"], "net_arch": [64, 64]}}
+
+
 #: ``--reuse-shipped``: challenges that evaluate the shipped models instead of training them, by challenge name.
 REUSE_SHIPPED: dict[str, Challenge] = {
     "zero-shot-ant-maze": Challenge(
@@ -412,6 +427,19 @@ REUSE_SHIPPED: dict[str, Challenge] = {
             ),
         ),
         steps={"smoke": {"pilot": 50}},  # smoke: 50-step episodes
+    ),
+    # one source for every seed: the shipped Fetch-Reach UDPO, whose state planner every seed's target reuses
+    "high-dim-action": Challenge(
+        "high-dim-action-shipped",
+        "the shipped Fetch-Reach UDPO's state planner, frozen, in a UDPO on Fetch-Reach-High-Dim, vs SAC+HER",
+        "Pilot/FetchReachHighDim-v0",
+        (
+            Shipped("source", FETCH_REACH_SOURCE),
+            dataclasses.replace(HIGH_DIM_ACTION_STAGES[1], params=_shipped_planner_transfer),
+            *HIGH_DIM_ACTION_STAGES[2:],
+        ),
+        steps={budget: {name: steps[name] for name in ("pilot", "her")} for budget, steps in HIGH_DIM_ACTION_STEPS.items()},
+        fast_hyperparams=RL_ZOO_FETCH_NORMALIZED,
     ),
     # one source for every seed: the plain Maze2D planner shipped with Zero-shot Ant-Maze (UDPO on Maze2D, uniform starts
     # and goals, 20k steps, seed 0: this challenge's source recipe at seed 0)
