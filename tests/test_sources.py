@@ -12,7 +12,7 @@ from sb3_pilot.experiments.benchmarks.sources import (
     verdict,
 )
 from sb3_pilot.experiments.challenges import stage_graph
-from sb3_pilot.experiments.challenges.definitions import BUDGETS
+from sb3_pilot.experiments.challenges.definitions import BUDGETS, RL_ZOO_FETCH_NORMALIZED
 from sb3_pilot.experiments.challenges.stages import StageContext
 
 
@@ -21,7 +21,15 @@ def test_every_source_task_has_two_independent_stages() -> None:
         challenge = source_challenge(env_id)
         assert stage_graph(challenge, [0, 1]) == {f"seed_{s}/{n}": () for s in (0, 1) for n in ("udpo", "her")}
         assert [stage.method for stage in challenge.stages] == [UDPO_HER, SAC_HER]
-        assert bool(challenge.fast_hyperparams) == ("Fetch" in env_id)
+        assert bool(challenge.fast_hyperparams) == ("Fetch" in env_id or env_id == "Pilot/Reacher-v0")
+
+
+def test_reacher_recipe_is_the_fetch_one_with_one_env() -> None:
+    """Reacher: RL-Zoo's FetchReach settings with VecNormalize and one env, both methods, 40k steps at the cpu budget."""
+    challenge = source_challenge("Pilot/Reacher-v0")
+    fast = challenge.fast_hyperparams
+    assert fast["*"] == {**RL_ZOO_FETCH_NORMALIZED["*"], "n_envs": 1} and fast["udpo"] == RL_ZOO_FETCH_NORMALIZED["udpo"]
+    assert challenge.steps["cpu"] == {"udpo": 40_000, "her": 40_000}
 
 
 def test_maze2d_trains_on_uniform_goals_and_is_evaluated_on_the_far_goal(tmp_path: Path) -> None:
