@@ -3,10 +3,11 @@ Aggregates the lambda (``planner_coef``) runs per task with ``sb3_pilot.experime
 steps to 90%, final success and the area under the success curve, stratified-bootstrap 95% intervals): copies each
 run's curve into ``curves.json`` (the source of the table, with where it came from) and prints ``table.md``.
 
-    python zoo_runs/sources/lambda/aggregate.py [--scratch /tmp/lambda] > zoo_runs/sources/lambda/table.md
+    python zoo_runs/sources/lambda/aggregate.py [--scratch /tmp/lambda] [--add /tmp/probe] > zoo_runs/sources/lambda/table.md
 
-With ``--scratch`` it first collects the runs' evaluations from the scratch folder into ``curves.json``; without it,
-it only re-renders the table from ``curves.json``.
+With ``--scratch`` it first collects the runs' evaluations from the scratch folder into ``curves.json``; with ``--add``
+it adds the Reacher and Maze2D runs of a later scratch folder (:func:`collect_more`) to those already there; without
+either, it only re-renders the table from ``curves.json``.
 """
 
 import argparse
@@ -79,7 +80,7 @@ def collect(scratch: Path) -> dict:
     # a. FetchReach, 10k steps
     fetch = tasks.setdefault("Pilot/FetchReach-v0", {})
     fetch.update(scratch_runs(scratch, "fetchreach", "Pilot/FetchReach-v0", ("0.0", "0.001", "0.01")))
-    fetch["SAC+HER (sources table)"] = summary_runs(SOURCES / "source-fetchreach/summary.json", "SAC+HER")
+    fetch["SAC+HER (sources table)"] = summary_runs(SOURCES / "old-lambda/source-fetchreach/summary.json", "SAC+HER")
     # b. wall maze: cross-wall successes of 4 pairs, deterministic once + sampled 5 times (24 episodes)
     wall = tasks.setdefault("wall maze (tests/maze_envs.py)", {})
     jsonl = scratch / "wall_maze.jsonl"
@@ -134,6 +135,38 @@ def collect(scratch: Path) -> dict:
     return tasks
 
 
+def scratch_seeds(folder: Path, env_id: str) -> list[dict]:
+    """The zoo runs ``folder/seed_<k>`` (seeds 0-2) and their logs ``<folder>_seed_<k>.log``."""
+    runs = []
+    for seed in range(3):
+        path = folder / f"seed_{seed}/udpo/{env_id.replace('/', '-')}_1/evaluations.npz"
+        if path.exists():
+            plan_error = last_plan_error(folder.parent / f"{folder.name}_seed_{seed}.log")
+            runs.append({"seed": seed, **npz_curve(path), "final_plan_error": plan_error})
+    return runs
+
+
+def collect_more(scratch: Path) -> dict:
+    """
+    e. Reacher, 40k steps, the sources benchmark's recipe (zoo_runs/sources/reacher): lambda 1e-3 beside the benchmark's
+    UDPO (the preset's lambda 1e-2) and SAC + HER; f. Maze2D, 20k steps, uniform-goal training, far-goal evaluation:
+    lambda 1e-3 beside the benchmark's UDPO (the preset's 0.1) and SAC + HER.
+    """
+    tasks: dict = {}
+    for env_id, folder, preset in (
+        ("Pilot/Reacher-v0", "reacher_lam1e-3", "0.01"),
+        ("Pilot/Maze2D-v0", "maze2d_lam1e-3", "0.1"),
+    ):
+        summary = SOURCES / f"source-{env_id.split('/')[-1].removesuffix('-v0').lower()}/summary.json"
+        runs = scratch_seeds(scratch / folder, env_id)
+        tasks[env_id] = {
+            **({"UDPO lambda 0.001": runs} if runs else {}),
+            f"UDPO lambda {preset} (preset, sources table)": summary_runs(summary, "UDPO+HER"),
+            "SAC+HER (sources table)": summary_runs(summary, "SAC+HER"),
+        }
+    return tasks
+
+
 def table(tasks: dict) -> str:
     lines = [
         "| task | method | seeds | steps to 90% IQM [95% CI] (reached) | final success IQM [CI] | area IQM [CI] "
@@ -172,10 +205,13 @@ def table(tasks: dict) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--scratch", default=None)
+    parser.add_argument("--add", default=None)
     args = parser.parse_args()
     path = HERE / "curves.json"
     if args.scratch:
         path.write_text(json.dumps(collect(Path(args.scratch)), indent=1))
+    if args.add:
+        path.write_text(json.dumps({**json.loads(path.read_text()), **collect_more(Path(args.add))}, indent=1))
     print(table(json.loads(path.read_text())))
 
 
