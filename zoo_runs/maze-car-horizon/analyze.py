@@ -1,0 +1,66 @@
+"""
+The 40k-step Maze-Car runs (``run.py``) read two ways: over all 40k steps and over their first 20k (the committed
+budget's window), each with ``rliable``'s statistics (:mod:`sb3_pilot.experiments.statistics`) and the ratio of the
+IQM steps to 90% (HER+PILoT over SAC+HER) with its stratified-bootstrap 95% interval.
+
+    python zoo_runs/maze-car-horizon/analyze.py > zoo_runs/maze-car-horizon/analysis.md
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from sb3_pilot.experiments.statistics import _interval, compare, iqm, method_statistics, run_scores
+
+SUMMARY = Path(__file__).parent / "maze-car-shipped" / "summary.json"
+PILOT, HER = "HER+PILoT (bonus, displacement_cosine)", "SAC+HER (scratch)"
+
+
+def window(runs: list[dict], last: int) -> list[dict]:
+    """The runs' evaluations up to ``last`` env steps."""
+    keep = [{k: run[k] for k in ("seed", "timesteps", "success_rate")} for run in runs]
+    for run in keep:
+        n = sum(step <= last for step in run["timesteps"])
+        run["timesteps"], run["success_rate"] = run["timesteps"][:n], run["success_rate"][:n]
+    return keep
+
+
+def fmt(entry: dict, digits: int = 2) -> str:
+    low, high = entry["ci"]
+    return f"{entry['value']:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"
+
+
+def main() -> None:
+    methods = json.loads(SUMMARY.read_text())["methods"]
+    print("| window | method | area | steps to 50% | steps to 90% (seeds) | final success |")
+    print("|---|---|---|---|---|---|")
+    comparisons = []
+    for last in (40_000, 20_000):
+        pilot, her = (window(methods[name]["runs"], last) for name in (PILOT, HER))
+        for name, runs in ((PILOT, pilot), (HER, her)):
+            stats = method_statistics(runs)
+            reached = sum(run_scores(r["timesteps"], r["success_rate"])["steps_to_90"] <= last for r in runs)
+            print(
+                f"| first {last // 1000}k | {name} | {fmt(stats['area'])} | {fmt(stats['steps_to_50'], 0)} | "
+                f"{fmt(stats['steps_to_90'], 0)} ({reached}/{len(runs)}) | {fmt(stats['final_success'])} |"
+            )
+        steps = [
+            np.array([run_scores(r["timesteps"], r["success_rate"])["steps_to_90"] for r in side]) for side in (pilot, her)
+        ]
+        ratio = _interval(steps, lambda x, y: iqm(x) / iqm(y), 0, 2000)
+        comparisons.append((last, compare(pilot, her), ratio))
+    print()
+    print("| window | area gain, IQM [95% CI] | P(improvement) | IQM steps to 90%, PILoT / HER [95% CI] | verdict |")
+    print("|---|---|---|---|---|")
+    for last, result, ratio in comparisons:
+        print(
+            f"| first {last // 1000}k | {fmt(result['area_gain'])} | {fmt(result['probability_of_improvement'])} | "
+            f"{fmt(ratio)} | {result['verdict']} |"
+        )
+
+
+if __name__ == "__main__":
+    main()
