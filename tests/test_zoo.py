@@ -72,7 +72,12 @@ PAPER_UDPO = {  # lambda, Delta
 #: The package's lambda where it measured one (zoo_runs/sources/lambda: 1e-3 as fast as or faster than the paper's
 #: value and than 1e-2, its planner still transfers; 0 does not transfer), UDPO's default; elsewhere the paper's
 #: (PAPER_UDPO), not measured. A preset line that departs from the paper names the paper's value in a comment.
-MEASURED_PLANNER_COEF = {"Pilot/FetchReach-v0": 1e-3, "Pilot/PointLocomotion-v0": 1e-3, "Pilot/Reacher-v0": 1e-3}
+MEASURED_PLANNER_COEF = {
+    "Pilot/FetchReach-v0": 1e-3,
+    "Pilot/PointLocomotion-v0": 1e-3,
+    "Pilot/Reacher-v0": 1e-3,
+    "Pilot/Maze2D-v0": 1e-3,
+}
 #: gymnasium-robotics' own goal tasks, covered under their own IDs by udpo.yml and sac.yml (not in the paper)
 ROBOTICS = (
     *("FetchReach-v4", "FetchPush-v4", "FetchSlide-v4", "FetchPickAndPlace-v4"),
