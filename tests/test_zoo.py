@@ -342,7 +342,8 @@ def test_train_enjoy_plot_cli(tmp_path: Path) -> None:
     run(*zoo, "train", *common, "-n", "500", "--seed", "0", "--eval-freq", "-1", cwd=tmp_path)
     model_path = tmp_path / "logs" / "udpo" / "Pilot-Maze2D-v0_1" / "Pilot-Maze2D-v0.zip"
     model = UDPO.load(model_path, env=DummyVecEnv([lambda: gym.make("Pilot/Maze2D-v0")]), device="cpu")  # HER needs the env
-    assert model.planner_coef == 0.1 and model.num_timesteps == 500
+    # the YAML entry's values (its batch size differs from UDPO's default 256; its lambda is the default since 1e-3)
+    assert model.batch_size == 128 and model.planner_coef == 1e-3 and model.num_timesteps == 500
     out = run(*zoo, "enjoy", *common, "-n", "120", "--no-render", cwd=tmp_path)
     assert "Success rate" in out and "2 Episodes" in out
     pytest.importorskip("seaborn", reason="rl_zoo3's plots need seaborn and scipy (rl_zoo3[plots])")
