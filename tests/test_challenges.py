@@ -147,6 +147,7 @@ def test_maze_car_smoke(tmp_path: Path) -> None:
     assert "sb3_pilot.baselines.MegaCallback" in " ".join(summary["stages"]["seed_0/mega"]["config"]["zoo"])
     rows = table([run_dir], reps=200)
     assert rows.count("\n") == 1 + 4 and "too few seeds (1)" in rows  # one seed: intervals, but no verdict
+    assert "IQM ratio to SAC+HER's" in rows and all(row.count("|") == 12 for row in rows.splitlines())
     statistics = json.loads((run_dir / "summary.json").read_text())["statistics"]
     assert set(statistics["comparisons"]) == {
         "HER+PILoT (bonus, paper: goal_cosine)",

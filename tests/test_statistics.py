@@ -39,11 +39,16 @@ def test_a_clear_gain_is_confirmed_and_no_gain_is_not() -> None:
     result = compare(pilot, her, reps=REPS)
     assert result["verdict"].startswith("confirmed")
     assert result["area_gain"]["ci"][0] > 0 and result["probability_of_improvement"]["value"] > 0.9
-    assert result["steps_to_90_ratio"] < 0.6
+    ratio = result["steps_to_90_ratio"]
+    assert ratio["value"] < 0.6 and ratio["ci"][0] <= ratio["value"] <= ratio["ci"][1] < 1
     assert compare(her, pilot, reps=REPS)["verdict"].startswith("worse")
     same = compare(her, her, reps=REPS)  # identical curves: an interval around 0, never "confirmed"
     assert same["area_gain"]["value"] == 0 and same["probability_of_improvement"]["value"] == 0.5
     assert same["verdict"].startswith("no gain shown")
+    low, high = same["steps_to_90_ratio"]["ci"]
+    assert same["steps_to_90_ratio"]["value"] == 1 and low < 1 < high
+    never = [{"timesteps": STEPS, "success_rate": [0.0] * len(STEPS)}] * 3
+    assert compare(never, never, reps=REPS)["steps_to_90_ratio"] is None  # neither reached 90%: no ratio
     # the same gain on two seeds: no verdict at all
     assert compare(pilot[:2], her[:2], reps=REPS)["verdict"].startswith("too few seeds (2)")
 

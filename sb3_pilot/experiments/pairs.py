@@ -3,8 +3,9 @@ The results table of the transfer pairs: one row per challenge run (``<root>/<ch
 method, with the ``rliable`` statistics of :mod:`sb3_pilot.experiments.statistics` (interquartile mean over seeds and
 stratified-bootstrap 95% intervals of the area under the success curve, the steps to 50% and 90% success and the
 final success; the probability of improvement over SAC+HER), the final distance to the goal (mean [min, max] over
-seeds) and a verdict on the paper's claim ("HER+PILoT learns the target faster than HER"). The statistics are also
-written into each ``summary.json`` (``statistics``).
+seeds), the ratio of the IQM steps to 90% to SAC+HER's with its interval (``-`` where no seed reached 90% or the
+method is zero-shot) and a verdict on the paper's claim ("HER+PILoT learns the target faster than HER"). The
+statistics are also written into each ``summary.json`` (``statistics``).
 
     python -m sb3_pilot.experiments.pairs [ROOT=zoo_runs] [CHALLENGE ...] [--episodes 10] [--reps 2000]
 
@@ -131,8 +132,8 @@ def table(run_dirs: list[Path], episodes: int = 10, reps: int = REPS) -> str:
     lines = [
         "| pair (budget, seeds) | method | env steps | area under the success curve, IQM [95% CI] | steps to 50%, IQM "
         "[95% CI] (seeds reaching it) | steps to 90% | final success, IQM [95% CI] | final distance, mean [min, max] "
-        "| P(improvement over SAC+HER) [95% CI] | verdict |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| P(improvement over SAC+HER) [95% CI] | steps to 90%, IQM ratio to SAC+HER's [95% CI] | verdict |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for run_dir in run_dirs:
         summary = add_statistics(run_dir, reps)
@@ -148,11 +149,13 @@ def table(run_dirs: list[Path], episodes: int = 10, reps: int = REPS) -> str:
             comparison = statistics["comparisons"].get(method)
             zero_shot = result["mean"]["timesteps"] == [0]
             improvement = _estimate(comparison["probability_of_improvement"]) if comparison else ""
+            ratio = comparison and not zero_shot and comparison["steps_to_90_ratio"]
+            pace = _estimate(ratio) if ratio else ("-" if comparison else "")
             lines.append(
                 f"| {pair} | {method} | {result['mean']['timesteps'][-1]} | {_estimate(stats['area'])} | "
                 f"{_steps(stats['steps_to_50'], stats['seeds'], zero_shot)} | "
                 f"{_steps(stats['steps_to_90'], stats['seeds'], zero_shot)} | "
-                f"{_estimate(stats['final_success'])} | {_spread(distances, 3)} | {improvement} | "
+                f"{_estimate(stats['final_success'])} | {_spread(distances, 3)} | {improvement} | {pace} | "
                 f"{comparison['verdict'] if comparison else ''} |"
             )
             pair = ""

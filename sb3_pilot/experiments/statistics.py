@@ -10,8 +10,9 @@ Statistics of a challenge's learning curves that can tell a gain from seed noise
 
 each with its stratified-bootstrap 95% interval. Each PILoT method is compared with SAC+HER on the area: the
 probability of improvement ``P(area_PILoT > area_HER)`` and the gain ``IQM(area_PILoT) - IQM(area_HER)``, with their
-bootstrap intervals (seeds of the two methods resampled independently). The verdict is "confirmed" only when the
-interval of the gain excludes 0 (lies above it).
+bootstrap intervals (seeds of the two methods resampled independently), and on the pace: the ratio
+``IQM(steps_to_90_PILoT) / IQM(steps_to_90_HER)`` with its interval (a censored seed makes its side's IQM a bound). The
+verdict is "confirmed" only when the interval of the gain excludes 0 (lies above it).
 """
 
 from __future__ import annotations
@@ -161,8 +162,9 @@ def compare(
     :param her_runs: SAC+HER's runs
     :param seed: the bootstrap's random seed
     :param reps: bootstrap replications
-    :return: ``probability_of_improvement`` and ``area_gain`` (``{"value", "ci"}``), ``steps_to_90_ratio`` (IQM of
-        PILoT's steps to 90% over HER's, censored seeds included; None when neither reached it) and ``verdict``
+    :return: ``probability_of_improvement``, ``area_gain`` and ``steps_to_90_ratio`` (``{"value", "ci"}``; the ratio
+        is the IQM of PILoT's steps to 90% over HER's, censored seeds included, None when no seed of either reached
+        90%) and ``verdict``
     """
     pilot_scores, her_scores = (
         [run_scores(run["timesteps"], run["success_rate"]) for run in runs] for runs in (pilot_runs, her_runs)
@@ -175,13 +177,16 @@ def compare(
     def gain(x: np.ndarray, y: np.ndarray) -> float:
         return iqm(x) - iqm(y)
 
+    def ratio(x: np.ndarray, y: np.ndarray) -> float:
+        return iqm(x) / iqm(y)
+
     area_gain = _interval([pilot, her], gain, seed, reps)
     reached = any(scores["steps_to_90"] < scores["censored_at"] for scores in (*pilot_scores, *her_scores))
     pilot_steps, her_steps = (np.array([scores["steps_to_90"] for scores in side]) for side in (pilot_scores, her_scores))
     return {
         "probability_of_improvement": _interval([pilot, her], improvement, seed, reps),
         "area_gain": area_gain,
-        "steps_to_90_ratio": iqm(pilot_steps) / iqm(her_steps) if reached else None,
+        "steps_to_90_ratio": _interval([pilot_steps, her_steps], ratio, seed, reps) if reached else None,
         "verdict": verdict(area_gain, min(len(pilot), len(her))),
     }
 
