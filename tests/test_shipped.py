@@ -18,7 +18,7 @@ from sb3_pilot.experiments.ant_controller import load_controller
 from sb3_pilot.experiments.challenges import REUSE_SHIPPED, Shipped
 from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
 from sb3_pilot.experiments.challenges.definitions import FETCH_REACH_SOURCE, SOURCES_DIR
-from sb3_pilot.experiments.challenges.stages import load_zoo_model
+from sb3_pilot.experiments.challenges.stages import config_hash, load_zoo_model, vecnormalize_path
 
 register_envs()
 SHIPPED_DIR = Path(__file__).resolve().parent.parent / "zoo_runs" / "zero-shot-ant-maze" / "controller"
@@ -32,6 +32,23 @@ def test_reuse_shipped_names_shipped_files():
         shipped = [stage.path for stage in challenge.stages if isinstance(stage, Shipped)]
         assert shipped and all(path.is_file() for path in shipped)
         assert all(SHIPPED_DIR in path.parents or SOURCES_DIR in path.parents for path in shipped)
+
+
+def test_shipped_hash_covers_vecnormalize(tmp_path: Path):
+    """A shipped zoo model's hash changes with its VecNormalize statistics, not only with its zip."""
+    model = tmp_path / "Pilot-FetchReach-v0.zip"
+    model.write_bytes(FETCH_REACH_SOURCE.read_bytes())
+    stats = vecnormalize_path(model)
+
+    def stage_hash() -> str:
+        return config_hash(Shipped("source", model).config(ctx=None, stage_dir=tmp_path), [])  # no context is read
+
+    alone = stage_hash()
+    stats.parent.mkdir()
+    stats.write_bytes(vecnormalize_path(FETCH_REACH_SOURCE).read_bytes())
+    normalised = stage_hash()
+    stats.write_bytes(b"other statistics")
+    assert len({alone, normalised, stage_hash()}) == 3
 
 
 @pytest.mark.parametrize("controller", CONTROLLERS, ids=lambda path: path.name)

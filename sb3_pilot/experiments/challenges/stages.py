@@ -137,6 +137,11 @@ def zoo_run_dir(stage_dir: Path, algo: str, env_id: str) -> Path:
     return stage_dir / algo / f"{env_id.replace('/', '-')}_1"
 
 
+def vecnormalize_path(model_path: Path) -> Path:
+    """Where the zoo saves the ``VecNormalize`` statistics of ``<run folder>/<env name>.zip`` (if it normalises)."""
+    return model_path.parent / model_path.stem / "vecnormalize.pkl"
+
+
 def load_zoo_model(
     model_path: Path, env: DummyVecEnv | None = None, algo: str | None = None
 ) -> tuple[BaseAlgorithm, VecNormalize | None]:
@@ -152,7 +157,7 @@ def load_zoo_model(
 
     register()  # ``udpo`` among the zoo's algorithms, in whichever process the stage runs
     algo = algo or model_path.parent.parent.name
-    stats = model_path.parent / model_path.stem / "vecnormalize.pkl"
+    stats = vecnormalize_path(model_path)
     vec_normalize = None
     if stats.exists():
         vec_normalize = VecNormalize.load(str(stats), env or DummyVecEnv([lambda: gym.make(_env_id(model_path))]))
@@ -359,7 +364,9 @@ class Distill:
 class Shipped:
     """
     A file that comes with the repository (a trained controller, a distilled planner) standing in for the stage that
-    would make it: nothing runs, and its hash is the file's content, so a stage reading it runs again when it changes.
+    would make it: nothing runs, and its hash is the file's content and that of the ``VecNormalize`` statistics
+    :func:`load_zoo_model` reads beside a model (where there are any), so a stage reading it runs again when either
+    changes.
 
     :param name: stage name (key of its output)
     :param path: the file
@@ -375,7 +382,11 @@ class Shipped:
         return self.path
 
     def config(self, ctx: StageContext, stage_dir: Path) -> dict[str, Any]:
-        return {"shipped": str(self.path), "sha256": hashlib.sha256(self.path.read_bytes()).hexdigest()}
+        config = {"shipped": str(self.path), "sha256": hashlib.sha256(self.path.read_bytes()).hexdigest()}
+        stats = vecnormalize_path(self.path)
+        if stats.exists():
+            config["vecnormalize_sha256"] = hashlib.sha256(stats.read_bytes()).hexdigest()
+        return config
 
     def describe(self, ctx: StageContext, stage_dir: Path) -> str:
         return f"shipped {self.path}"
