@@ -11,7 +11,7 @@ import yaml
 from sb3_pilot.experiments.challenges import BUDGETS, CHALLENGES, run_challenge
 from sb3_pilot.experiments.challenges.definitions import HER, IMAGE_ENCODER, PILOT_DISPLACEMENT, PILOT_PAPER
 from sb3_pilot.experiments.demo import BUDGET as DEMO_BUDGET
-from sb3_pilot.experiments.pairs import FINAL_EVAL, table
+from sb3_pilot.experiments.pairs import FINAL_EVAL, _pace, table
 from sb3_pilot.experiments.pairs import main as pairs_main
 from sb3_pilot.experiments.zoo import hyperparams_dir
 
@@ -91,6 +91,20 @@ def test_maze_car_shipped_planner_is_shared() -> None:
     assert shipped.fast_hyperparams == full.fast_hyperparams and shipped.target_env == full.target_env
     assert shipped.steps["cpu"] == {stage.name: full.steps["cpu"][stage.name] for stage in shipped.stages[1:]}
     assert GoalPlanner.load(shipped.stages[0].path).source_task == "Pilot/Maze2D-v0"
+
+
+def test_pace_reads_censored_ratios_as_bounds() -> None:
+    """A side whose seeds did not all reach 90% is counted at the budget's end: the ratio is then a bound."""
+    ratio = {"value": 0.8, "ci": [0.7, 0.95]}
+
+    def stats(reached: int) -> dict:
+        return {"seeds": 10, "steps_to_90": {"reached": reached}}
+
+    assert _pace(ratio, stats(10), stats(10)) == "0.80 [0.70, 0.95]"
+    assert _pace(ratio, stats(10), stats(2)) == "at most 0.80 [0.70, 0.95]"  # SAC+HER's steps understated
+    assert _pace(ratio, stats(0), stats(10)) == "at least 0.80 [0.70, 0.95]"
+    assert _pace(ratio, stats(7), stats(2)).endswith("(censored seeds on both sides)")
+    assert _pace(None, stats(0), stats(0)) == "-"
 
 
 def test_pairs_cli_bad_input(capsys: pytest.CaptureFixture[str]) -> None:

@@ -3,9 +3,9 @@ The results table of the transfer pairs: one row per challenge run (``<root>/<ch
 method, with the ``rliable`` statistics of :mod:`sb3_pilot.experiments.statistics` (interquartile mean over seeds and
 stratified-bootstrap 95% intervals of the area under the success curve, the steps to 50% and 90% success and the
 final success; the probability of improvement over SAC+HER), the final distance to the goal (mean [min, max] over
-seeds), the ratio of the IQM steps to 90% to SAC+HER's with its interval (``-`` where no seed reached 90% or the
-method is zero-shot) and a verdict on the paper's claim ("HER+PILoT learns the target faster than HER"). The
-statistics are also written into each ``summary.json`` (``statistics``).
+seeds), the ratio of the IQM steps to 90% to SAC+HER's with its interval (a bound where one side's seeds did not all
+reach 90%; ``-`` where none did or the method is zero-shot) and a verdict on the paper's claim ("HER+PILoT learns
+the target faster than HER"). The statistics are also written into each ``summary.json`` (``statistics``).
 
     python -m sb3_pilot.experiments.pairs [ROOT=zoo_runs] [CHALLENGE ...] [--episodes 10] [--reps 2000]
 
@@ -104,6 +104,20 @@ def _steps(entry: dict[str, Any], seeds: int, zero_shot: bool) -> str:
     return f"{entry['value']:.0f} [{low:.0f}, {high:.0f}] ({entry['reached']}/{seeds})"
 
 
+def _pace(ratio: dict[str, Any] | None, pilot: dict[str, Any], her: dict[str, Any]) -> str:
+    """
+    The ratio of the IQM steps to 90% and its interval, read as a bound where seeds of one side never reached 90% (they
+    count at ``censored_at``, which understates that side's steps): at most when SAC+HER's were censored, at least
+    when the PILoT method's were.
+    """
+    if ratio is None:
+        return "-"
+    censored = [stats["seeds"] - stats["steps_to_90"]["reached"] for stats in (pilot, her)]
+    bound = {(False, True): "at most ", (True, False): "at least "}.get((censored[0] > 0, censored[1] > 0), "")
+    text = f"{bound}{_estimate(ratio)}"
+    return text + " (censored seeds on both sides)" if all(censored) else text
+
+
 def _spread(values: list[float], digits: int = 2) -> str:
     return f"{np.mean(values):.{digits}f} [{min(values):.{digits}f}, {max(values):.{digits}f}]" if values else "-"
 
@@ -149,8 +163,10 @@ def table(run_dirs: list[Path], episodes: int = 10, reps: int = REPS) -> str:
             comparison = statistics["comparisons"].get(method)
             zero_shot = result["mean"]["timesteps"] == [0]
             improvement = _estimate(comparison["probability_of_improvement"]) if comparison else ""
-            ratio = comparison and not zero_shot and comparison["steps_to_90_ratio"]
-            pace = _estimate(ratio) if ratio else ("-" if comparison else "")
+            pace = ""
+            if comparison:
+                ratio = None if zero_shot else comparison["steps_to_90_ratio"]
+                pace = _pace(ratio, stats, statistics["methods"][HER])
             lines.append(
                 f"| {pair} | {method} | {result['mean']['timesteps'][-1]} | {_estimate(stats['area'])} | "
                 f"{_steps(stats['steps_to_50'], stats['seeds'], zero_shot)} | "
