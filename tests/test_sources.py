@@ -59,6 +59,8 @@ def test_verdict() -> None:
     )
     assert verdict(stats(11000, 0), stats(11000, 0)) == "neither reached 90% at this budget"
     assert verdict(stats(2000, 2, seeds=2), stats(2000, 2, seeds=2)).startswith("too few seeds (2) for a verdict")
+    interval = {"value": 1.2, "ci": [0.9, 1.5]}
+    assert verdict(stats(2400, 5), stats(2000, 5), interval) == "slower than HER (IQM steps to 90% 1.20x HER's [0.90, 1.50])"
 
 
 def test_table_statistics() -> None:
@@ -75,7 +77,7 @@ def test_table_statistics() -> None:
     }
     rows = table([summary], reps=50).splitlines()[2:]
     assert rows[0].startswith("| Pilot/Maze2D-v0 (3) | UDPO+HER | 10000 | 3000 [3000, 3000] (3/3) | 4000 [4000, 4000] (3/3) |")
-    assert "| 1.00 [1.00, 1.00] | 0.74 [0.74, 0.74] | slower than HER (IQM steps to 90% 1.33x HER's) |" in rows[0]
+    assert "| 1.00 [1.00, 1.00] | 0.74 [0.74, 0.74] | slower than HER (IQM steps to 90% 1.33x HER's [1.33, 1.33]) |" in rows[0]
     assert rows[1].startswith("|  | SAC+HER | 10000 | 2000 [2000, 2000] (3/3) | 3000 [3000, 3000] (3/3) |")
 
 

@@ -26,7 +26,7 @@ from typing import Any
 
 from sb3_pilot.experiments.challenges import Challenge, ZooTrain, run_challenge
 from sb3_pilot.experiments.challenges.definitions import RL_ZOO_FETCH_NORMALIZED
-from sb3_pilot.experiments.statistics import MIN_SEEDS, REPS, method_statistics
+from sb3_pilot.experiments.statistics import MIN_SEEDS, REPS, compare, method_statistics
 
 SOURCE_TASKS = ("Pilot/FetchReach-v0", "Pilot/FetchPush-v0", "Pilot/Reacher-v0", "Pilot/Maze2D-v0", "Pilot/PointLocomotion-v0")
 UDPO_HER, SAC_HER = "UDPO+HER", "SAC+HER"
@@ -75,7 +75,7 @@ def source_challenge(env_id: str) -> Challenge:
     )
 
 
-def verdict(udpo: dict[str, Any], her: dict[str, Any]) -> str:
+def verdict(udpo: dict[str, Any], her: dict[str, Any], ratio: dict[str, Any] | None = None) -> str:
     """
     Whether UDPO learned as fast as HER (issue 21's rule): "as fast as HER" when UDPO's IQM over seeds of the steps to
     90% success is at most :data:`AS_FAST` times SAC + HER's, seeds that never reach 90% counted one evaluation
@@ -83,20 +83,22 @@ def verdict(udpo: dict[str, Any], her: dict[str, Any]) -> str:
 
     :param udpo: UDPO + HER's :func:`~sb3_pilot.experiments.statistics.method_statistics`
     :param her: the same for SAC + HER
+    :param ratio: the ratio's stratified-bootstrap interval (``compare``'s ``steps_to_90_ratio``), printed after it
     """
     udpo_steps, her_steps = udpo["steps_to_90"], her["steps_to_90"]
     seeds = min(udpo["seeds"], her["seeds"])
     if udpo_steps["reached"] == 0 and her_steps["reached"] == 0:
         return "neither reached 90% at this budget"
-    ratio = udpo_steps["value"] / her_steps["value"]
-    pace = "as fast as HER" if ratio <= AS_FAST else "slower than HER"
+    value = udpo_steps["value"] / her_steps["value"]
+    pace = "as fast as HER" if value <= AS_FAST else "slower than HER"
+    times = f"{value:.2f}x HER's" + (f" [{ratio['ci'][0]:.2f}, {ratio['ci'][1]:.2f}]" if ratio else "")
     # a method that never reached 90% has the censored steps as its IQM: the ratio is then a bound
     if udpo_steps["reached"] == 0:
-        text = f"{pace} (UDPO never reached 90%: IQM steps to 90% at least {ratio:.2f}x HER's)"
+        text = f"{pace} (UDPO never reached 90%: IQM steps to 90% at least {times})"
     elif her_steps["reached"] == 0:
-        text = f"{pace} (HER never reached 90%: IQM steps to 90% at most {ratio:.2f}x HER's)"
+        text = f"{pace} (HER never reached 90%: IQM steps to 90% at most {times})"
     else:
-        text = f"{pace} (IQM steps to 90% {ratio:.2f}x HER's)"
+        text = f"{pace} (IQM steps to 90% {times})"
     return text if seeds >= MIN_SEEDS else f"too few seeds ({seeds}) for a verdict: {text}"
 
 
@@ -118,7 +120,8 @@ def table(summaries: list[dict[str, Any]], reps: int = REPS) -> str:
     """
     A markdown table per task and method: the ``rliable`` IQM over seeds and stratified-bootstrap 95% interval of the
     steps to 50% / 90% success (seeds reaching it; the others counted at ``censored_at``), the final success and the
-    area under the success curve (:func:`~sb3_pilot.experiments.statistics.method_statistics`), and :func:`verdict`.
+    area under the success curve (:func:`~sb3_pilot.experiments.statistics.method_statistics`), and :func:`verdict`
+    with the ratio's 95% interval (:func:`~sb3_pilot.experiments.statistics.compare`).
 
     :param summaries: the tasks' ``summary.json``
     :param reps: bootstrap replications
@@ -131,6 +134,7 @@ def table(summaries: list[dict[str, Any]], reps: int = REPS) -> str:
     for summary in summaries:
         methods = summary["methods"]
         stats = {method: method_statistics(methods[method]["runs"], reps=reps) for method in (UDPO_HER, SAC_HER)}
+        ratio = compare(methods[UDPO_HER]["runs"], methods[SAC_HER]["runs"], reps=reps)["steps_to_90_ratio"]
         task = f"{summary['target_env']} ({len(summary['seeds'])})"
         for method in (UDPO_HER, SAC_HER):
             entry = stats[method]
@@ -138,7 +142,7 @@ def table(summaries: list[dict[str, Any]], reps: int = REPS) -> str:
                 f"| {task} | {method} | {methods[method]['mean']['timesteps'][-1]} | "
                 f"{_steps(entry['steps_to_50'], entry['seeds'])} | {_steps(entry['steps_to_90'], entry['seeds'])} | "
                 f"{_estimate(entry['final_success'])} | {_estimate(entry['area'])} | "
-                f"{verdict(stats[UDPO_HER], stats[SAC_HER]) if method == UDPO_HER else ''} |"
+                f"{verdict(stats[UDPO_HER], stats[SAC_HER], ratio) if method == UDPO_HER else ''} |"
             )
             task = ""
     return "\n".join(lines)
