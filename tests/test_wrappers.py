@@ -11,7 +11,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 from sb3_pilot.distill import GoalPlanner, distill_goal_planner
 from sb3_pilot.distill import goal_planner as planner_module
 from sb3_pilot.transfer import LandmarkGuidance, PilotBonusWrapper, PilotHerReplayBuffer
-from sb3_pilot.transfer.bonus import PREVIOUS_ACHIEVED_GOAL
+from sb3_pilot.transfer.bonus import PREVIOUS_ACHIEVED_GOAL, SIMILARITIES, cosine_similarity, planned_progress
 
 
 def make_planner(source_task: str = "WallMazeEnv", goal_dim: int = 2, seed: int = 0) -> GoalPlanner:
@@ -56,7 +56,7 @@ def make_buffer(env, buffer_class=PilotHerReplayBuffer, **kwargs):
     return buffer_class(200, env.observation_space, env.action_space, env=DummyVecEnv([lambda: env]), **kwargs)
 
 
-@pytest.mark.parametrize("similarity", ["goal_cosine", "displacement_cosine"])
+@pytest.mark.parametrize("similarity", SIMILARITIES)
 def test_her_relabelled_reward_equals_online_reward(similarity):
     env = PilotBonusWrapper(WallMazeEnv(), make_planner(), beta=0.5, similarity=similarity)
     buffer = make_buffer(env)
@@ -124,6 +124,23 @@ def test_similarities():
     # The paper's cosine of goal vectors barely tells moving towards the landmark from moving away
     bonus = paper.bonus(previous, achieved, desired)
     assert bonus[0] > bonus[1] and bonus[0] - bonus[1] < 0.2
+
+
+def test_planned_progress_measures_the_move_along_the_plan():
+    planned = np.array([0.2, 0.0], dtype=np.float32)
+    previous = np.array([[0.5, 0.5]] * 6, dtype=np.float32)
+    moves = np.array([[0.1, 0.0], [0.1, 0.3], [-0.05, 0.0], [0.0, 0.1], [0.6, 0.0], [-0.6, 0.0]], dtype=np.float32)
+    desired = np.zeros_like(previous)
+    for offset in (0.0, 3.0):
+        env = PilotBonusWrapper(WallMazeEnv(offset=offset), constant_planner(planned), similarity="planned_progress")
+        bonus = env.bonus(previous + offset, previous + moves + offset, desired)
+        # half the planned step, also with a sideways part; a quarter back; sideways only; clipped past one step
+        np.testing.assert_allclose(bonus, [0.5, 0.5, -0.25, 0.0, 1.0, -1.0], atol=1e-6)
+    # two slow moves forward and a fast one back earn nothing over the cycle; the displacement cosine pays 1 for it
+    cycle = np.array([[0.05, 0.0], [0.05, 0.0], [-0.1, 0.0]], dtype=np.float32)
+    assert planned_progress(cycle, np.stack([planned] * 3)).sum() == pytest.approx(0.0)
+    assert cosine_similarity(cycle, np.stack([planned] * 3)).sum() == pytest.approx(1.0)
+    np.testing.assert_array_equal(planned_progress(cycle, np.zeros_like(cycle)), [0.0, 0.0, 0.0])
 
 
 def test_bonus_wrapper_refusals(monkeypatch):

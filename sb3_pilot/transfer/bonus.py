@@ -16,13 +16,23 @@ from sb3_pilot.distill import GoalPlanner
 #: Info key holding the achieved goal before the transition (``phi(s)``), which the bonus needs.
 PREVIOUS_ACHIEVED_GOAL = "previous_achieved_goal"
 #: Similarities of :class:`PilotBonusWrapper`.
-SIMILARITIES = ("goal_cosine", "displacement_cosine")
+SIMILARITIES = ("goal_cosine", "displacement_cosine", "planned_progress")
 
 
 def cosine_similarity(first: np.ndarray, second: np.ndarray, eps: float = 1e-8) -> np.ndarray:
     """Cosine of vectors along the last axis; 0 where one of them is (nearly) zero."""
     norms = np.linalg.norm(first, axis=-1) * np.linalg.norm(second, axis=-1)
     return np.sum(first * second, axis=-1) / np.maximum(norms, eps)
+
+
+def planned_progress(move: np.ndarray, planned_move: np.ndarray, eps: float = 1e-8) -> np.ndarray:
+    """
+    The part of ``move`` along ``planned_move``, as a fraction of ``planned_move``, clipped to [-1, 1]
+    (last axis); 0 where ``planned_move`` is (nearly) zero.
+    """
+    squared_norm = np.sum(planned_move * planned_move, axis=-1)
+    progress = np.sum(move * planned_move, axis=-1) / np.maximum(squared_norm, eps)
+    return np.clip(np.where(squared_norm > eps, progress, 0.0), -1.0, 1.0)
 
 
 def _previous_achieved_goal(info: Any) -> np.ndarray:
@@ -50,7 +60,11 @@ class PilotBonusWrapper(gym.RewardWrapper):
       origin of the goal space lies: with the origin inside the workspace, it rewards being on the landmark's side
       of the origin rather than moving towards it.
     - ``"displacement_cosine"``: cosine of the achieved move ``phi(s') - phi(s)`` and the planned one
-      ``g_hat' - phi(s)``; origin-free, and 0 when the agent does not move.
+      ``g_hat' - phi(s)``; origin-free, and 0 when the agent does not move. It rewards the direction of a move, not its
+      length, so slow moves towards the landmark and fast moves back earn a bonus over a cycle.
+    - ``"planned_progress"``: how far the agent advances along the planned move, as a fraction of it:
+      ``<phi(s') - phi(s), g_hat' - phi(s)> / ||g_hat' - phi(s)||^2``, clipped to [-1, 1]; origin-free, and moving
+      back costs what moving forward earned.
 
     ``compute_reward(achieved_goal, desired_goal, info)`` gives the sparse reward plus the bonus *for that desired
     goal*, batched, so transitions relabelled by HER get the bonus of their new goal. It reads ``phi(s)`` from
@@ -65,7 +79,7 @@ class PilotBonusWrapper(gym.RewardWrapper):
         (:func:`~sb3_pilot.share_goal_space` with a ``goal_map``), the env's goals are mapped into the planner's
         coordinates and the landmark back: the bonus, also of HER's relabelled goals, is in the env's coordinates
     :param beta: bonus ratio ``beta``
-    :param similarity: ``"displacement_cosine"`` or ``"goal_cosine"``
+    :param similarity: ``"displacement_cosine"``, ``"goal_cosine"`` or ``"planned_progress"``
     """
 
     def __init__(
@@ -100,7 +114,10 @@ class PilotBonusWrapper(gym.RewardWrapper):
             landmark = self.goal_map.through(self.planner.predict, previous_achieved_goal, desired_goal)
         if self.similarity == "goal_cosine":
             return cosine_similarity(achieved_goal, landmark).astype(np.float32)
-        return cosine_similarity(achieved_goal - previous_achieved_goal, landmark - previous_achieved_goal).astype(np.float32)
+        move, planned_move = achieved_goal - previous_achieved_goal, landmark - previous_achieved_goal
+        if self.similarity == "planned_progress":
+            return planned_progress(move, planned_move).astype(np.float32)
+        return cosine_similarity(move, planned_move).astype(np.float32)
 
     def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
         """
