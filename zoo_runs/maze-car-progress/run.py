@@ -4,8 +4,9 @@ move, against SAC+HER, 40k steps, the Maze-Car horizon run's setup otherwise (is
 
 The `maze-car --reuse-shipped` challenge (the shipped Maze2D planner, the cpu budget's 64x64 networks, 10
 deterministic episodes every 2000 steps) for 40k env steps, as ``zoo_runs/maze-car-horizon``, with its ``her`` stage
-and a ``pilot_prog`` stage: ``pilot_disp``'s stage with ``similarity: planned_progress``. Writes
-``zoo_runs/maze-car-progress/maze-car-shipped/``.
+a ``pilot_prog`` stage: ``pilot_disp``'s stage with ``similarity: planned_progress``, and an ``oracle_prog`` stage: the
+same with exact landmarks (``OracleBonusWrapper``: a step of the U-maze's shortest path) instead of the planner's,
+the best a landmark could do. Writes ``zoo_runs/maze-car-progress/maze-car-shipped/``.
 
     OMP_NUM_THREADS=1 python zoo_runs/maze-car-progress/run.py --seeds 10 --jobs 1
 """
@@ -15,16 +16,25 @@ from __future__ import annotations
 import argparse
 import dataclasses
 from pathlib import Path
+from typing import Any
 
+from sb3_pilot.experiments.benchmarks.oracle_landmarks import OracleBonusWrapper
 from sb3_pilot.experiments.challenges.definitions import BUDGETS, REUSE_SHIPPED, _bonus, only_stages
+from sb3_pilot.experiments.challenges.runner import run_challenge
 
 STEPS = 40_000
 EVAL_EVERY = 2_000  # the committed cpu budget's grid (20k steps, 10 evaluations)
 PROGRESS = "HER+PILoT (bonus, planned_progress)"
+ORACLE = "HER+exact landmarks (bonus, planned_progress)"
+
+
+def oracle_bonus(outputs: dict[str, Path]) -> dict[str, Any]:
+    """``-params`` of the ``oracle_prog`` stage: the bonus of exact landmarks."""
+    kwargs = {"beta": 1.0, "similarity": "planned_progress"}
+    return {"env_wrapper": [{f"{OracleBonusWrapper.__module__}.{OracleBonusWrapper.__qualname__}": kwargs}]}
+
 
 if __name__ == "__main__":
-    from sb3_pilot.experiments.challenges.runner import run_challenge
-
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--first-seed", type=int, default=0)
@@ -36,12 +46,13 @@ if __name__ == "__main__":
     progress = dataclasses.replace(
         stages["pilot_disp"], name="pilot_prog", params=_bonus("distill", "planned_progress"), method=PROGRESS
     )
-    challenge = dataclasses.replace(challenge, stages=(stages["distill"], stages["her"], progress))
+    oracle = dataclasses.replace(stages["pilot_disp"], name="oracle_prog", params=oracle_bonus, needs=(), method=ORACLE)
+    challenge = dataclasses.replace(challenge, stages=(stages["distill"], stages["her"], progress, oracle))
     run_challenge(
         challenge,
         budget,
         seeds=range(args.first_seed, args.first_seed + args.seeds),
         root=Path(__file__).parent,
-        steps={"her": STEPS, "pilot_prog": STEPS},
+        steps={"her": STEPS, "pilot_prog": STEPS, "oracle_prog": STEPS},
         jobs=args.jobs,
     )
