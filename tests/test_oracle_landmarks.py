@@ -1,5 +1,6 @@
 import gymnasium as gym
 import numpy as np
+import pytest
 
 from sb3_pilot.envs import register_envs
 from sb3_pilot.envs.maze import umaze_is_free
@@ -24,5 +25,9 @@ def test_oracle_bonus_wrapper_on_the_car():
     register_envs()
     env = OracleBonusWrapper(gym.make("Pilot/Maze2DCar-v0"), similarity="planned_progress")
     obs, _ = env.reset(seed=0)
-    _, reward, *_ = env.step(env.action_space.sample())
-    assert -2.0 <= reward <= 1.0
+    previous = obs["achieved_goal"]
+    obs, reward, _, _, info = env.step(env.action_space.sample())
+    sparse = env.unwrapped.compute_reward(obs["achieved_goal"], obs["desired_goal"], info)
+    planned = env.planner.predict(previous, obs["desired_goal"]) - previous
+    progress = np.dot(obs["achieved_goal"] - previous, planned) / np.dot(planned, planned)
+    assert reward == pytest.approx(sparse + np.clip(progress, -1, 1), abs=1e-5)

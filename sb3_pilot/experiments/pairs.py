@@ -33,7 +33,7 @@ import numpy as np
 from sb3_pilot.experiments.challenges.definitions import CHALLENGES, HER, REUSE_SHIPPED
 from sb3_pilot.experiments.challenges.stages import load_zoo_model, play_episodes, zoo_run_dir
 from sb3_pilot.experiments.evaluation import load_final_distances
-from sb3_pilot.experiments.statistics import REPS, summary_statistics
+from sb3_pilot.experiments.statistics import REPS, format_estimate, summary_statistics
 from sb3_pilot.experiments.zoo import register
 
 FINAL_EVAL = "final_eval.json"
@@ -88,12 +88,6 @@ def evaluate_final(run_dir: Path, episodes: int = 10) -> dict[str, Any]:
     return results
 
 
-def _estimate(entry: dict[str, Any], digits: int = 2) -> str:
-    """``value [low, high]`` of a statistic."""
-    low, high = entry["ci"]
-    return f"{entry['value']:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"
-
-
 def _steps(entry: dict[str, Any], seeds: int, zero_shot: bool) -> str:
     """IQM of the steps to a success rate and how many seeds reached it (the others counted at ``censored_at``)."""
     if entry["reached"] == 0:
@@ -114,7 +108,7 @@ def _pace(ratio: dict[str, Any] | None, pilot: dict[str, Any], her: dict[str, An
         return "-"
     censored = [stats["seeds"] - stats["steps_to_90"]["reached"] for stats in (pilot, her)]
     bound = {(False, True): "at most ", (True, False): "at least "}.get((censored[0] > 0, censored[1] > 0), "")
-    text = f"{bound}{_estimate(ratio)}"
+    text = f"{bound}{format_estimate(ratio)}"
     return text + " (censored seeds on both sides)" if all(censored) else text
 
 
@@ -162,16 +156,16 @@ def table(run_dirs: list[Path], episodes: int = 10, reps: int = REPS) -> str:
                 distances = [entry["distance"] for entry in final.get(method, {}).values()]
             comparison = statistics["comparisons"].get(method)
             zero_shot = result["mean"]["timesteps"] == [0]
-            improvement = _estimate(comparison["probability_of_improvement"]) if comparison else ""
+            improvement = format_estimate(comparison["probability_of_improvement"]) if comparison else ""
             pace = ""
             if comparison:
                 ratio = None if zero_shot else comparison["steps_to_90_ratio"]
                 pace = _pace(ratio, stats, statistics["methods"][HER])
             lines.append(
-                f"| {pair} | {method} | {result['mean']['timesteps'][-1]} | {_estimate(stats['area'])} | "
+                f"| {pair} | {method} | {result['mean']['timesteps'][-1]} | {format_estimate(stats['area'])} | "
                 f"{_steps(stats['steps_to_50'], stats['seeds'], zero_shot)} | "
                 f"{_steps(stats['steps_to_90'], stats['seeds'], zero_shot)} | "
-                f"{_estimate(stats['final_success'])} | {_spread(distances, 3)} | {improvement} | {pace} | "
+                f"{format_estimate(stats['final_success'])} | {_spread(distances, 3)} | {improvement} | {pace} | "
                 f"{comparison['verdict'] if comparison else ''} |"
             )
             pair = ""

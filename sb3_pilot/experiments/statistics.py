@@ -60,6 +60,26 @@ def run_scores(timesteps: Sequence[int], success_rate: Sequence[float]) -> dict[
     return scores
 
 
+def first_steps(runs: Sequence[dict[str, Any]], last: int) -> list[dict[str, Any]]:
+    """
+    The runs' learning curves cut after ``last`` env steps (a shorter budget's window of longer runs).
+
+    :param runs: runs with ``seed``, ``timesteps`` and ``success_rate``
+    :param last: the last env step kept
+    """
+    cut = []
+    for run in runs:
+        n = sum(step <= last for step in run["timesteps"])
+        cut.append({"seed": run["seed"], "timesteps": run["timesteps"][:n], "success_rate": run["success_rate"][:n]})
+    return cut
+
+
+def format_estimate(entry: dict[str, Any], digits: int = 2) -> str:
+    """``value [low, high]`` of a statistic (``{"value", "ci"}``)."""
+    low, high = entry["ci"]
+    return f"{entry['value']:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"
+
+
 def _estimates(data: Any, func: Callable[..., np.ndarray], seed: int, reps: int) -> tuple[np.ndarray, np.ndarray]:
     """
     rliable's ``get_interval_estimates`` (percentile method) on one entry, reproducible.

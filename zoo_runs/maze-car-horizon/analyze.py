@@ -11,24 +11,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from sb3_pilot.experiments.statistics import compare, method_statistics, run_scores
+from sb3_pilot.experiments.statistics import compare, first_steps, method_statistics, run_scores
+from sb3_pilot.experiments.statistics import format_estimate as fmt
 
 SUMMARY = Path(__file__).parent / "maze-car-shipped" / "summary.json"
 PILOT, HER = "HER+PILoT (bonus, displacement_cosine)", "SAC+HER (scratch)"
-
-
-def window(runs: list[dict], last: int) -> list[dict]:
-    """The runs' evaluations up to ``last`` env steps."""
-    keep = [{k: run[k] for k in ("seed", "timesteps", "success_rate")} for run in runs]
-    for run in keep:
-        n = sum(step <= last for step in run["timesteps"])
-        run["timesteps"], run["success_rate"] = run["timesteps"][:n], run["success_rate"][:n]
-    return keep
-
-
-def fmt(entry: dict, digits: int = 2) -> str:
-    low, high = entry["ci"]
-    return f"{entry['value']:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"
 
 
 def main() -> None:
@@ -37,7 +24,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|")
     comparisons = []
     for last in (40_000, 20_000):
-        pilot, her = (window(methods[name]["runs"], last) for name in (PILOT, HER))
+        pilot, her = (first_steps(methods[name]["runs"], last) for name in (PILOT, HER))
         for name, runs in ((PILOT, pilot), (HER, her)):
             stats = method_statistics(runs)
             reached = sum(run_scores(r["timesteps"], r["success_rate"])["steps_to_90"] <= last for r in runs)
