@@ -21,12 +21,17 @@ from sb3_pilot.transfer import PilotBonusWrapper
 INNER_WALL = np.array([[-1.5 * UMAZE_SCALING, -0.5 * UMAZE_SCALING], [0.5 * UMAZE_SCALING, 0.5 * UMAZE_SCALING]])
 
 
-def _crosses_inner_wall(start: np.ndarray, end: np.ndarray, n_points: int = 64) -> np.ndarray:
-    """Whether the segments ``start -> end`` (n, 2) pass through the inner wall's interior (tested at n_points)."""
-    fractions = np.linspace(0.0, 1.0, n_points)[None, :, None]
-    points = start[:, None, :] + fractions * (end - start)[:, None, :]
-    inside = (points > INNER_WALL[0]) & (points < INNER_WALL[1])
-    return inside.all(axis=-1).any(axis=-1)
+def _crosses_inner_wall(start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """Whether the segments ``start -> end`` (n, 2) pass through the inner wall's interior (Liang-Barsky clipping)."""
+    direction = end - start
+    with np.errstate(divide="ignore", invalid="ignore"):
+        bounds = (INNER_WALL[:, None, :] - start) / direction  # (2, n, 2): the parameters where each face is crossed
+    enter, leave = bounds.min(axis=0), bounds.max(axis=0)
+    parallel = direction == 0  # a segment parallel to a face: inside that slab throughout, or never
+    inside_slab = (start > INNER_WALL[0]) & (start < INNER_WALL[1])
+    enter = np.where(parallel, np.where(inside_slab, -np.inf, np.inf), enter)
+    leave = np.where(parallel, np.where(inside_slab, np.inf, -np.inf), leave)
+    return np.maximum(enter.max(axis=1), 0.0) < np.minimum(leave.min(axis=1), 1.0) - 1e-9
 
 
 class UMazeOraclePlanner(GoalPlanner):
