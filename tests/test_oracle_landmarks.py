@@ -19,6 +19,9 @@ def test_oracle_landmarks_go_around_the_inner_wall():
         heading = (landmarks[landmark] - achieved[start]) / 0.7
         np.testing.assert_allclose(heading, (corner - achieved[start]) / np.linalg.norm(corner - achieved[start]), atol=1e-5)
     assert umaze_is_free(landmarks).all()
+    _, lengths = planner.shortest_path(achieved, desired)
+    around = 2 * np.hypot(6.5, 1.5) + 5.0  # (-4, 4) to (-4, -4) by both corners, 0.5 off the wall
+    np.testing.assert_allclose(lengths, [8.0, around, np.hypot(1.5, 2.5) + np.hypot(6.5, 1.5), around, 0.3], atol=1e-6)
 
 
 def test_oracle_bonus_wrapper_on_the_car():

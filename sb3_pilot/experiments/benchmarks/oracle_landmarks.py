@@ -51,19 +51,14 @@ class UMazeOraclePlanner(GoalPlanner):
         right = INNER_WALL[1, 0] + margin
         self.corners = np.array([[right, INNER_WALL[1, 1] + margin], [right, INNER_WALL[0, 1] - margin]])
 
-    def predict(
-        self, achieved_goal: np.ndarray, desired_goal: np.ndarray, deterministic: bool = True, snap: bool = False
-    ) -> np.ndarray:
+    def shortest_path(self, start: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """
-        The point ``step`` along the shortest path (or the desired goal, if nearer).
+        The shortest paths ``start -> end`` in the free space, bending at the corners.
 
-        :param achieved_goal: shape (2,) or (n, 2)
-        :param desired_goal: same shape
-        :param deterministic: unused (the oracle is deterministic)
-        :param snap: unused
+        :param start: shape (n, 2)
+        :param end: shape (n, 2)
+        :return: each path's first waypoint (the end itself, or a corner), shape (n, 2), and its length, shape (n,)
         """
-        start = np.atleast_2d(np.asarray(achieved_goal, dtype=np.float64))
-        end = np.atleast_2d(np.asarray(desired_goal, dtype=np.float64))
         first, second = (np.broadcast_to(corner, start.shape) for corner in self.corners)
 
         def length(vector: np.ndarray) -> np.ndarray:
@@ -82,10 +77,26 @@ class UMazeOraclePlanner(GoalPlanner):
             (second, length(second - start) + gap + length(end - first), clear(start, second) & clear(first, end)),
         ]
         lengths = np.stack([np.where(is_clear, path_length, np.inf) for _, path_length, is_clear in paths])
+        best = np.argmin(lengths, axis=0)
         waypoints = np.stack([waypoint for waypoint, _, _ in paths])
-        waypoint = waypoints[np.argmin(lengths, axis=0), np.arange(len(start))]
+        return waypoints[best, np.arange(len(start))], lengths[best, np.arange(len(start))]
+
+    def predict(
+        self, achieved_goal: np.ndarray, desired_goal: np.ndarray, deterministic: bool = True, snap: bool = False
+    ) -> np.ndarray:
+        """
+        The point ``step`` along the shortest path (or the desired goal, if nearer).
+
+        :param achieved_goal: shape (2,) or (n, 2)
+        :param desired_goal: same shape
+        :param deterministic: unused (the oracle is deterministic)
+        :param snap: unused
+        """
+        start = np.atleast_2d(np.asarray(achieved_goal, dtype=np.float64))
+        waypoint, _ = self.shortest_path(start, np.atleast_2d(np.asarray(desired_goal, dtype=np.float64)))
         direction = waypoint - start
-        landmark = start + direction * np.minimum(1.0, self.step / np.maximum(length(direction), 1e-8))[:, None]
+        distance = np.linalg.norm(direction, axis=-1)
+        landmark = start + direction * np.minimum(1.0, self.step / np.maximum(distance, 1e-8))[:, None]
         return landmark.astype(np.float32).reshape(np.shape(achieved_goal))
 
 
