@@ -111,6 +111,12 @@ VEC_TO_IMAGE_FAST: dict[str, dict[str, Any]] = {
     "sac": {"batch_size": 64, "policy_kwargs": {"features_extractor_kwargs": {"encoder": IMAGE_ENCODER}}},
 }
 
+#: Vec-to-Image on Reacher: :data:`VEC_TO_IMAGE_FAST` with the source recipe under which SAC + HER and UDPO learn
+#: Reacher (zoo_runs/sources/reacher: one env, one gradient step per env step; 40k steps at the cpu budget).
+VEC_TO_IMAGE_REACHER_FAST: dict[str, dict[str, Any]] = {
+    **VEC_TO_IMAGE_FAST,
+    "udpo": {**VEC_TO_IMAGE_FAST["udpo"], "n_envs": 1},
+}
 #: Maze-Car's target agents at the smoke and cpu budgets, every method alike: 64x64 networks (RL-Zoo's FetchReach
 #: size) instead of SB3's 256x256, so that 10 seeds x 3 methods fit a session on a shared 2-core machine (a 256x256
 #: SAC ran at 27-90 env steps/s on one core there); the source UDPO keeps its YAML's.
@@ -308,9 +314,9 @@ CHALLENGES: dict[str, Challenge] = {
             _bonus_stages("Pilot/Reacher-v0", "Pilot/ReacherImage-v0"),
             steps={
                 "smoke": {"source": 800, "pilot": 400, "pilot_disp": 400, "her": 400},
-                "cpu": {"source": 20_000, "pilot": 8000, "pilot_disp": 8000, "her": 8000},
+                "cpu": {"source": 40_000, "pilot": 8000, "pilot_disp": 8000, "her": 8000},
             },
-            fast_hyperparams=VEC_TO_IMAGE_FAST,
+            fast_hyperparams=VEC_TO_IMAGE_REACHER_FAST,
         ),
         Challenge(
             "complex-morph",
