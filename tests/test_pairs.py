@@ -5,13 +5,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
-from sb3_pilot.experiments.challenges import BUDGETS, CHALLENGES, run_challenge
+from sb3_pilot.experiments.challenges import BUDGETS, CHALLENGES, REUSE_SHIPPED, run_challenge
 from sb3_pilot.experiments.challenges.definitions import HER, IMAGE_ENCODER, PILOT_DISPLACEMENT, PILOT_PAPER
 from sb3_pilot.experiments.demo import BUDGET as DEMO_BUDGET
-from sb3_pilot.experiments.pairs import FINAL_EVAL, _pace, table
+from sb3_pilot.experiments.pairs import FINAL_EVAL, _pace, evaluate_final, table
 from sb3_pilot.experiments.pairs import main as pairs_main
 from sb3_pilot.experiments.zoo import hyperparams_dir
 
@@ -84,7 +85,6 @@ def test_demo_budget_is_named() -> None:
 def test_maze_car_shipped_planner_is_shared() -> None:
     """``maze-car --reuse-shipped``: one shipped Maze2D planner for every seed, the target stages exactly maze-car's."""
     from sb3_pilot.distill import GoalPlanner
-    from sb3_pilot.experiments.challenges import REUSE_SHIPPED
 
     shipped, full = REUSE_SHIPPED["maze-car"], CHALLENGES["maze-car"]
     assert shipped.stages[0].name == "distill" and shipped.stages[1:] == full.stages[2:]
@@ -131,3 +131,21 @@ def test_new_pairs_smoke(tmp_path: Path, name: str) -> None:
     assert rows.count("\n") == 1 + len(methods)
     final = json.loads((run_dir / FINAL_EVAL).read_text())
     assert set(final) == methods and all(entry["seed_0"]["distance"] >= 0 for entry in final.values())
+
+
+def test_final_eval_reads_a_rerun_stage_not_its_stale_record(tmp_path: Path) -> None:
+    """A stage run again after final_eval.json recorded it: its new evaluations.npz wins over the old record."""
+    challenge = REUSE_SHIPPED["maze-car"]
+    run_dir = tmp_path / challenge.name
+    run_dir.mkdir()
+    (run_dir / "summary.json").write_text(json.dumps({"challenge": challenge.name, "seeds": [0]}))
+    stage = next(stage for stage in challenge.stages if stage.name == "her")
+    model = stage.output(run_dir / "models/seed_0/her")
+    model.parent.mkdir(parents=True)
+    model.touch()
+    np.savez(model.parent / "evaluations.npz", successes=np.array([[0.0, 1.0]]), final_distances=np.array([0.25]))
+    stale = {stage.method: {"seed_0": {"success": 0.0, "distance": 9.0, "episodes": 10}}}
+    (run_dir / FINAL_EVAL).write_text(json.dumps(stale))
+    results = evaluate_final(run_dir)
+    assert results[stage.method]["seed_0"] == {"success": 0.5, "distance": 0.25, "episodes": 2}
+    assert json.loads((run_dir / FINAL_EVAL).read_text()) == results

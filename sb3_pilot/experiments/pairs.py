@@ -59,17 +59,17 @@ def evaluate_final(run_dir: Path, episodes: int = 10) -> dict[str, Any]:
             continue
         for seed in summary["seeds"]:
             key = f"seed_{seed}"
-            if key in results.get(stage.method, {}):
-                continue
             model_path = stage.output(run_dir / "models" / key / stage.name)
-            if not model_path.exists():
+            if not model_path.exists():  # models not kept: what final_eval.json recorded, if anything
                 continue
             evaluations = zoo_run_dir(run_dir / "models" / key / stage.name, stage.algo, stage.env_id) / "evaluations.npz"
             distances = load_final_distances(evaluations) if evaluations.exists() else None
-            if distances is not None:  # recorded by GoalEvalCallback at every evaluation: its last one
+            if distances is not None:  # recorded by GoalEvalCallback at every evaluation: its last one (a re-run's)
                 with np.load(evaluations) as data:
                     successes = list(data["successes"][-1])
                 distances, episodes_used = [float(distances[-1])], len(successes)
+            elif key in results.get(stage.method, {}):  # replayed before
+                continue
             else:  # a run from before GoalEvalCallback: play the final model again
                 model, vec_normalize = load_zoo_model(model_path)
                 env = gym.make(stage.env_id, **getattr(stage, "env_kwargs", {}))
