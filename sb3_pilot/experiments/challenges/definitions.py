@@ -18,7 +18,7 @@ planned moves, stage ``pilot_disp``), beside SAC + HER from scratch (stage ``her
 Step counts: the paper gives none (its figures only show curves), so every count here is our choice. ``paper``
 uses the ``n_timesteps`` of the paper-value YAML files (``hyperparams/*.yml``, themselves a choice, see their
 headers); ``cpu`` is sized for one long session on 2 cores (measured per seed, 1 torch thread: High-Dim-Action about
-3 min, Vec-to-Image on Reacher about 8 min; on a loaded machine, Vec-to-Image on Fetch 17-27 min (its pixel-only
+3 min, Vec-to-Image on Reacher about 11 min; on a loaded machine, Vec-to-Image on Fetch 17-27 min (its pixel-only
 agents ran at 15-26 env steps/s) and High-Dim-Action on Push 69 min; Complex-Morph's
 300k-step Ant stages and Zero-shot Ant-Maze's 350k-step controller and baseline 20-45 min each); ``demo`` is ``make
 demo``'s (High-Dim-Action only, see :mod:`sb3_pilot.experiments.demo`); ``smoke`` only checks that the pipeline
