@@ -29,6 +29,11 @@ def planned_progress(move: np.ndarray, planned_move: np.ndarray, eps: float = 1e
     """
     The part of ``move`` along ``planned_move``, as a fraction of ``planned_move``, clipped to [-1, 1]
     (last axis); 0 where ``planned_move`` is (nearly) zero.
+
+    :param move: achieved moves ``phi(s') - phi(s)``, shape (..., goal_dim)
+    :param planned_move: planned moves ``g_hat' - phi(s)``, same shape
+    :param eps: squared length under which a planned move counts as zero
+    :return: shape (...)
     """
     squared_norm = np.sum(planned_move * planned_move, axis=-1)
     progress = np.sum(move * planned_move, axis=-1) / np.maximum(squared_norm, eps)
