@@ -19,6 +19,7 @@ from stable_baselines3 import SAC, HerReplayBuffer
 from sb3_pilot.distill import GoalPlanner
 from sb3_pilot.envs import register_envs
 from sb3_pilot.transfer import PilotBonusWrapper, PilotHerReplayBuffer
+from sb3_pilot.transfer.bonus import SIMILARITIES
 
 
 def make_sac(env: gym.Env, replay_buffer_class: type[HerReplayBuffer], seed: int) -> SAC:
@@ -44,6 +45,7 @@ def main() -> None:
     parser.add_argument("--chunk", type=int, default=1000, help="env steps per timed chunk")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--planner-net-arch", type=int, nargs="+", default=[256, 256], help="hidden layers of the planner")
+    parser.add_argument("--similarity", choices=SIMILARITIES, default="displacement_cosine", help="the bonus's similarity")
     args = parser.parse_args()
     register_envs()
 
@@ -52,7 +54,9 @@ def main() -> None:
     planner = GoalPlanner(goal_dim, args.planner_net_arch, metadata={"source_task": args.env})
     models = {
         "plain": make_sac(env, HerReplayBuffer, args.seed),
-        "bonus": make_sac(PilotBonusWrapper(gym.make(args.env), planner), PilotHerReplayBuffer, args.seed),
+        "bonus": make_sac(
+            PilotBonusWrapper(gym.make(args.env), planner, similarity=args.similarity), PilotHerReplayBuffer, args.seed
+        ),
     }
     seconds = dict.fromkeys(models, 0.0)
     for model in models.values():
@@ -64,7 +68,10 @@ def main() -> None:
             seconds[name] += time.perf_counter() - start
     speed = {name: args.rounds * args.chunk / value for name, value in seconds.items()}
     ratio = speed["bonus"] / speed["plain"]
-    print(f"{args.env}: unwrapped {speed['plain']:.1f} steps/s, wrapped {speed['bonus']:.1f} steps/s, ratio {ratio:.3f}")
+    print(
+        f"{args.env}, {args.similarity}: unwrapped {speed['plain']:.1f} steps/s, wrapped {speed['bonus']:.1f} steps/s, "
+        f"ratio {ratio:.3f}"
+    )
 
 
 if __name__ == "__main__":
