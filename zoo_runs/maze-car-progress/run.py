@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from sb3_pilot.experiments.benchmarks.oracle_landmarks import OracleBonusWrapper
-from sb3_pilot.experiments.challenges.definitions import BUDGETS, REUSE_SHIPPED, _bonus, only_stages
+from sb3_pilot.experiments.challenges.definitions import BUDGETS, REUSE_SHIPPED, bonus_params, only_stages
 from sb3_pilot.experiments.challenges.runner import run_challenge
 
 STEPS = 40_000
@@ -44,7 +44,7 @@ if __name__ == "__main__":
     challenge = only_stages(REUSE_SHIPPED["maze-car"], ["her", "pilot_disp"])
     stages = {stage.name: stage for stage in challenge.stages}
     progress = dataclasses.replace(
-        stages["pilot_disp"], name="pilot_prog", params=_bonus("distill", "planned_progress"), method=PROGRESS
+        stages["pilot_disp"], name="pilot_prog", params=bonus_params("distill", "planned_progress"), method=PROGRESS
     )
     oracle = dataclasses.replace(stages["pilot_disp"], name="oracle_prog", params=oracle_bonus, needs=(), method=ORACLE)
     challenge = dataclasses.replace(challenge, stages=(stages["distill"], stages["her"], progress, oracle))

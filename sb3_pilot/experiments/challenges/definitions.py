@@ -160,7 +160,7 @@ class Challenge:
     fast_hyperparams: dict[str, dict[str, Any]] = field(default_factory=dict)
 
 
-def _bonus(planner_stage: str, similarity: str) -> Any:
+def bonus_params(planner_stage: str, similarity: str) -> Any:
     """
     ``-params`` of a HER + PILoT stage: the bonus wrapper on the planner distilled by ``planner_stage``, with
     ``similarity`` (:data:`~sb3_pilot.transfer.bonus.SIMILARITIES`) written out even where it is the default.
@@ -230,7 +230,7 @@ def _bonus_stages(
             target_algo,
             target_env,
             "sac_pilot.yml",
-            params=_bonus("distill", "goal_cosine"),
+            params=bonus_params("distill", "goal_cosine"),
             needs=("distill",),
             method=PILOT_PAPER,
         ),
@@ -239,7 +239,7 @@ def _bonus_stages(
             target_algo,
             target_env,
             "sac_pilot.yml",
-            params=_bonus("distill", "displacement_cosine"),
+            params=bonus_params("distill", "displacement_cosine"),
             needs=("distill",),
             method=PILOT_DISPLACEMENT,
         ),
