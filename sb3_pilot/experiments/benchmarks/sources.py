@@ -44,8 +44,8 @@ EVAL_ENV_KWARGS: dict[str, dict[str, Any]] = {"Pilot/Maze2D-v0": {"goal_distribu
 #: before any UDPO run (zoo_runs/sources/reacher): the preset's 4 envs (one gradient step per 4 env steps), gamma 0.99
 #: and lr 3e-4 reached 0.00-0.20 success in 50k steps. FetchPush's, from one SAC + HER run alone, before any UDPO run
 #: on it (zoo_runs/sources/fetchpush): also one env, RL-Zoo's FetchPush tau 0.05, 256x256 networks and a target
-#: entropy of 0 instead of -dim(action) (with -4 the entropy coefficient collapsed and 150k steps stayed at chance);
-#: 90% at 200k steps, hence 250k.
+#: entropy of 0 instead of -dim(action) (with -4 its entropy coefficient collapsed; those runs, 2 envs to 150k and
+#: 1 env to 65k, stayed at chance); 90% at 200k steps, hence 250k.
 FAST_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
     "Pilot/FetchReach-v0": RL_ZOO_FETCH_NORMALIZED,
     "Pilot/FetchPush-v0": {
