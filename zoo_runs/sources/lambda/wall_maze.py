@@ -3,13 +3,18 @@ UDPO's lambda (``planner_coef``) on the wall maze: the wall test's teacher (``te
 construction, 20k steps) with each lambda and seed, evaluated every 2k steps on the cross-wall goals of
 ``tests/wall_maze_teacher.py``'s four start/goal pairs (deterministic once + sampled 5 times: 24 episodes) and on
 ``wall_detour_end``'s pair (the test's). The evaluation restores torch's and NumPy's generators, so the run is the one
-``train_udpo`` makes (checked: the 20k ``wall_detour_end`` equals the test's). One JSON line per run.
+``train_udpo`` makes (checked: the 20k ``wall_detour_end`` equals the test's). One JSON line per run. ``--algo sac``
+trains SB3's SAC + HER with the same settings (``SMALL_HER_SETTINGS``) instead, the baseline; ``--jobs`` runs that
+many trainings side by side (one process each, one torch thread).
 
     OMP_NUM_THREADS=1 python zoo_runs/sources/lambda/wall_maze.py --coefs 0 1e-3 1e-2 --seeds 0 1 2 3 > OUT.jsonl
+    OMP_NUM_THREADS=1 python zoo_runs/sources/lambda/wall_maze.py --algo udpo sac --coefs 1e-3 --seeds 0 1 --jobs 4
 """
 
 import argparse
+import itertools
 import json
+import multiprocessing
 import random
 import sys
 import time
@@ -17,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import torch as th
+from stable_baselines3 import SAC
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.monitor import Monitor
 
@@ -46,31 +52,55 @@ class CrossWallEval(BaseCallback):
         return True
 
 
+def train(algo: str, coef: float, seed: int, steps: int, every: int, plan_target: str) -> str:
+    """One training run, evaluated every ``every`` steps: its JSON line (``coef`` and ``plan_target``: UDPO's)."""
+    th.set_num_threads(1)
+    start = time.time()
+    if algo == "udpo":
+        model = UDPO(
+            "MultiInputPolicy",
+            Monitor(WallMazeEnv()),
+            **SMALL_HER_SETTINGS,
+            **UDPO_SETTINGS,
+            planner_coef=coef,
+            plan_target=plan_target,
+            seed=seed,
+        )
+    else:
+        model = SAC("MultiInputPolicy", Monitor(WallMazeEnv()), **SMALL_HER_SETTINGS, seed=seed)
+    callback = CrossWallEval(every)
+    model.learn(steps, callback=callback)
+    reached, end = wall_detour_end(model)
+    row = {"algo": algo, "planner_coef": coef if algo == "udpo" else None, "seed": seed, "steps": steps}
+    if algo == "udpo" and plan_target != "buffer":
+        row["plan_target"] = plan_target
+    row.update(detour_end=[bool(reached), end.tolist()], evals=callback.rows, wall_time_s=round(time.time() - start, 1))
+    return json.dumps(row)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
+    parser.add_argument("--algo", nargs="+", choices=["udpo", "sac"], default=["udpo"])
     parser.add_argument("--coefs", type=float, nargs="+", default=[0.0, 1e-3, 1e-2])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3])
     parser.add_argument("--steps", type=int, default=20_000)
     parser.add_argument("--every", type=int, default=2000)
+    parser.add_argument("--jobs", type=int, default=1)
+    parser.add_argument("--plan-target", choices=["buffer", "policy"], default="buffer", help="UDPO's plan_target")
     args = parser.parse_args()
-    for coef in args.coefs:
-        for seed in args.seeds:
-            start = time.time()
-            model = UDPO(
-                "MultiInputPolicy",
-                Monitor(WallMazeEnv()),
-                **SMALL_HER_SETTINGS,
-                **UDPO_SETTINGS,
-                planner_coef=coef,
-                plan_target="buffer",
-                seed=seed,
-            )
-            callback = CrossWallEval(args.every)
-            model.learn(args.steps, callback=callback)
-            reached, end = wall_detour_end(model)
-            row = {"planner_coef": coef, "seed": seed, "steps": args.steps, "detour_end": [bool(reached), end.tolist()]}
-            row.update(evals=callback.rows, wall_time_s=round(time.time() - start, 1))
-            print(json.dumps(row), flush=True)
+    runs = [(algo, coef) for algo in args.algo for coef in (args.coefs if algo == "udpo" else [0.0])]
+    # seed-major order: a run cut short leaves every method with about the same seeds; lines in order of finishing
+    jobs = [
+        (algo, coef, seed, args.steps, args.every, args.plan_target)
+        for seed, (algo, coef) in itertools.product(args.seeds, runs)
+    ]
+    with multiprocessing.get_context("spawn").Pool(args.jobs) as pool:
+        for line in pool.imap_unordered(_train, jobs):
+            print(line, flush=True)
+
+
+def _train(job: tuple[str, float, int, int, int, str]) -> str:
+    return train(*job)
 
 
 if __name__ == "__main__":

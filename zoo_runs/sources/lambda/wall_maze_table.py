@@ -1,0 +1,60 @@
+"""
+The walled maze's runs of ``wall_maze.py`` (JSON lines) as one table: per UDPO variant and SAC + HER, the IQM over
+seeds and its stratified-bootstrap 95% interval (``sb3_pilot.experiments.statistics``) of the steps to 50% / 90% of
+the sampled cross-wall success (20 episodes a checkpoint), of the area under that curve, and each variant's area
+against SAC + HER's; how many seeds' deterministic test pair (``wall_detour_end``) went round the wall at 12k / 20k.
+
+    python zoo_runs/sources/lambda/wall_maze_table.py zoo_runs/sources/lambda/wall_maze_16seeds.jsonl
+"""
+
+import argparse
+import json
+from collections import defaultdict
+from pathlib import Path
+
+from sb3_pilot.experiments.statistics import compare, format_estimate, method_statistics
+
+
+def method_name(row: dict) -> str:
+    """``SAC+HER`` or ``UDPO lambda <coef>`` (with its ``plan_target`` when not the default)."""
+    if row["algo"] == "sac":
+        return "SAC+HER"
+    target = f", plan_target {row['plan_target']}" if row.get("plan_target") else ""
+    return f"UDPO lambda {row['planner_coef']:g}{target}"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("files", type=Path, nargs="+")
+    args = parser.parse_args()
+    runs: dict[str, list[dict]] = defaultdict(list)
+    for path in args.files:
+        for line in path.read_text().splitlines():
+            row = json.loads(line)
+            evals = row["evals"]
+            runs[method_name(row)].append(
+                {
+                    "seed": row["seed"],
+                    "timesteps": [e[0] for e in evals],
+                    "success_rate": [e[2] / 20 for e in evals],
+                    "pair": {e[0]: e[3] for e in evals},
+                }
+            )
+    print(
+        "| method | seeds | steps to 50%, IQM [95% CI] (reached) | steps to 90% | area | area - SAC+HER's "
+        "| test pair round the wall at 12k / 20k |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for method in sorted(runs, key=lambda name: (name != "SAC+HER", name)):
+        stats = method_statistics(runs[method])
+        steps = [
+            f"{format_estimate(stats[key], 0)} ({stats[key]['reached']}/{stats['seeds']})"
+            for key in ("steps_to_50", "steps_to_90")
+        ]
+        gain = "" if method == "SAC+HER" else format_estimate(compare(runs[method], runs["SAC+HER"])["area_gain"])
+        pairs = " / ".join(str(sum(run["pair"][step] for run in runs[method])) for step in (12_000, 20_000))
+        print(f"| {method} | {stats['seeds']} | {' | '.join(steps)} | {format_estimate(stats['area'])} | {gain} | {pairs} |")
+
+
+if __name__ == "__main__":
+    main()
