@@ -19,18 +19,23 @@ import random
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch as th
 from stable_baselines3 import SAC
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.noise import NormalActionNoise
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "tests"))
 from maze_envs import SMALL_HER_SETTINGS, UDPO_SETTINGS, WallMazeEnv, wall_detour_end
 from wall_maze_teacher import cross_wall_successes
 
 from sb3_pilot import UDPO
+
+#: UDPO's options as the wall test's teacher has them (``train_udpo``)
+DEFAULTS: dict[str, Any] = {"plan_target": "buffer", "ent_coef": "auto", "noise_std": None}
 
 
 class CrossWallEval(BaseCallback):
@@ -52,18 +57,26 @@ class CrossWallEval(BaseCallback):
         return True
 
 
-def train(algo: str, coef: float, seed: int, steps: int, every: int, plan_target: str) -> str:
-    """One training run, evaluated every ``every`` steps: its JSON line (``coef`` and ``plan_target``: UDPO's)."""
+def train(algo: str, coef: float, seed: int, steps: int, every: int, options: dict[str, Any]) -> str:
+    """
+    One training run, evaluated every ``every`` steps: its JSON line.
+
+    :param options: UDPO's ``plan_target`` and ``ent_coef``, and ``noise_std`` (a Gaussian action noise, None: none);
+        those that differ from :data:`DEFAULTS` are written in the line (``coef`` and these are ignored for SAC)
+    """
     th.set_num_threads(1)
     start = time.time()
     if algo == "udpo":
+        noise = options["noise_std"] and NormalActionNoise(np.zeros(2), options["noise_std"] * np.ones(2))
         model = UDPO(
             "MultiInputPolicy",
             Monitor(WallMazeEnv()),
             **SMALL_HER_SETTINGS,
             **UDPO_SETTINGS,
             planner_coef=coef,
-            plan_target=plan_target,
+            plan_target=options["plan_target"],
+            ent_coef=options["ent_coef"],
+            action_noise=noise or None,
             seed=seed,
         )
     else:
@@ -72,8 +85,8 @@ def train(algo: str, coef: float, seed: int, steps: int, every: int, plan_target
     model.learn(steps, callback=callback)
     reached, end = wall_detour_end(model)
     row = {"algo": algo, "planner_coef": coef if algo == "udpo" else None, "seed": seed, "steps": steps}
-    if algo == "udpo" and plan_target != "buffer":
-        row["plan_target"] = plan_target
+    if algo == "udpo":
+        row.update({key: value for key, value in options.items() if value != DEFAULTS[key]})
     row.update(detour_end=[bool(reached), end.tolist()], evals=callback.rows, wall_time_s=round(time.time() - start, 1))
     return json.dumps(row)
 
@@ -87,19 +100,20 @@ def main() -> None:
     parser.add_argument("--every", type=int, default=2000)
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--plan-target", choices=["buffer", "policy"], default="buffer", help="UDPO's plan_target")
+    parser.add_argument("--ent-coef", default="auto", help="UDPO's ent_coef ('auto' or a number)")
+    parser.add_argument("--noise-std", type=float, default=None, help="UDPO's Gaussian action noise (default: none)")
     args = parser.parse_args()
+    ent_coef = args.ent_coef if args.ent_coef.startswith("auto") else float(args.ent_coef)
+    options = {"plan_target": args.plan_target, "ent_coef": ent_coef, "noise_std": args.noise_std}
     runs = [(algo, coef) for algo in args.algo for coef in (args.coefs if algo == "udpo" else [0.0])]
     # seed-major order: a run cut short leaves every method with about the same seeds; lines in order of finishing
-    jobs = [
-        (algo, coef, seed, args.steps, args.every, args.plan_target)
-        for seed, (algo, coef) in itertools.product(args.seeds, runs)
-    ]
+    jobs = [(algo, coef, seed, args.steps, args.every, options) for seed, (algo, coef) in itertools.product(args.seeds, runs)]
     with multiprocessing.get_context("spawn").Pool(args.jobs) as pool:
         for line in pool.imap_unordered(_train, jobs):
             print(line, flush=True)
 
 
-def _train(job: tuple[str, float, int, int, int, str]) -> str:
+def _train(job: tuple[str, float, int, int, int, dict[str, Any]]) -> str:
     return train(*job)
 
 

@@ -16,11 +16,11 @@ from sb3_pilot.experiments.statistics import compare, format_estimate, method_st
 
 
 def method_name(row: dict) -> str:
-    """``SAC+HER`` or ``UDPO lambda <coef>`` (with its ``plan_target`` when not the default)."""
+    """``SAC+HER`` or ``UDPO lambda <coef>``, with the options that differ from the wall test's teacher's."""
     if row["algo"] == "sac":
         return "SAC+HER"
-    target = f", plan_target {row['plan_target']}" if row.get("plan_target") else ""
-    return f"UDPO lambda {row['planner_coef']:g}{target}"
+    options = "".join(f", {key} {row[key]}" for key in ("plan_target", "ent_coef", "noise_std") if key in row)
+    return f"UDPO lambda {row['planner_coef']:g}{options}"
 
 
 def main() -> None:
