@@ -4,7 +4,10 @@ seeds and its stratified-bootstrap 95% interval (``sb3_pilot.experiments.statist
 the sampled cross-wall success (20 episodes a checkpoint), of the area under that curve, and each variant's area
 against SAC + HER's; how many seeds' deterministic test pair (``wall_detour_end``) went round the wall at 12k / 20k.
 
-    python zoo_runs/sources/lambda/wall_maze_table.py zoo_runs/sources/lambda/wall_maze_16seeds.jsonl
+    python zoo_runs/sources/lambda/wall_maze_table.py zoo_runs/sources/lambda/wall_maze_16seeds.jsonl \
+        --labelled "2-core" zoo_runs/sources/lambda/wall_maze_16seeds_local.jsonl
+
+``--labelled LABEL FILE ...``: runs made elsewhere (another machine), their methods named with the label.
 """
 
 import argparse
@@ -26,13 +29,15 @@ def method_name(row: dict) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("files", type=Path, nargs="+")
+    parser.add_argument("--labelled", nargs="+", default=[], metavar="LABEL FILE", help="a label, then its files")
     args = parser.parse_args()
+    labelled = [("", path) for path in args.files] + [(f" ({args.labelled[0]})", Path(f)) for f in args.labelled[1:]]
     runs: dict[str, list[dict]] = defaultdict(list)
-    for path in args.files:
+    for label, path in labelled:
         for line in path.read_text().splitlines():
             row = json.loads(line)
             evals = row["evals"]
-            runs[method_name(row)].append(
+            runs[method_name(row) + label].append(
                 {
                     "seed": row["seed"],
                     "timesteps": [e[0] for e in evals],
@@ -51,7 +56,8 @@ def main() -> None:
             f"{format_estimate(stats[key], 0)} ({stats[key]['reached']}/{stats['seeds']})"
             for key in ("steps_to_50", "steps_to_90")
         ]
-        gain = "" if method == "SAC+HER" else format_estimate(compare(runs[method], runs["SAC+HER"])["area_gain"])
+        baseline = method == "SAC+HER" or "SAC+HER" not in runs
+        gain = "" if baseline else format_estimate(compare(runs[method], runs["SAC+HER"])["area_gain"])
         pairs = " / ".join(str(sum(run["pair"][step] for run in runs[method])) for step in (12_000, 20_000))
         print(f"| {method} | {stats['seeds']} | {' | '.join(steps)} | {format_estimate(stats['area'])} | {gain} | {pairs} |")
 
