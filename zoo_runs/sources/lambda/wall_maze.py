@@ -35,7 +35,13 @@ from wall_maze_teacher import cross_wall_successes
 from sb3_pilot import UDPO
 
 #: UDPO's options as the wall test's teacher has them (``train_udpo``)
-DEFAULTS: dict[str, Any] = {"plan_target": "buffer", "ent_coef": "auto", "noise_std": None}
+DEFAULTS: dict[str, Any] = {
+    "plan_target": "buffer",
+    "ent_coef": "auto",
+    "noise_std": None,
+    "inverse_dynamics_interval": UDPO_SETTINGS["inverse_dynamics_interval"],
+    "inverse_dynamics_gradient_steps": UDPO_SETTINGS["inverse_dynamics_gradient_steps"],
+}
 
 
 class CrossWallEval(BaseCallback):
@@ -61,7 +67,8 @@ def train(algo: str, coef: float, seed: int, steps: int, every: int, options: di
     """
     One training run, evaluated every ``every`` steps: its JSON line.
 
-    :param options: UDPO's ``plan_target`` and ``ent_coef``, and ``noise_std`` (a Gaussian action noise, None: none);
+    :param options: UDPO's ``plan_target``, ``ent_coef``, ``inverse_dynamics_interval`` (Delta) and
+        ``inverse_dynamics_gradient_steps``, and ``noise_std`` (a Gaussian action noise, None: none);
         those that differ from :data:`DEFAULTS` are written in the line (``coef`` and these are ignored for SAC)
     """
     th.set_num_threads(1)
@@ -72,7 +79,7 @@ def train(algo: str, coef: float, seed: int, steps: int, every: int, options: di
             "MultiInputPolicy",
             Monitor(WallMazeEnv()),
             **SMALL_HER_SETTINGS,
-            **UDPO_SETTINGS,
+            **{**UDPO_SETTINGS, **{key: options[key] for key in UDPO_SETTINGS if key in options}},
             planner_coef=coef,
             plan_target=options["plan_target"],
             ent_coef=options["ent_coef"],
@@ -102,9 +109,12 @@ def main() -> None:
     parser.add_argument("--plan-target", choices=["buffer", "policy"], default="buffer", help="UDPO's plan_target")
     parser.add_argument("--ent-coef", default="auto", help="UDPO's ent_coef ('auto' or a number)")
     parser.add_argument("--noise-std", type=float, default=None, help="UDPO's Gaussian action noise (default: none)")
+    parser.add_argument("--id-interval", type=int, default=DEFAULTS["inverse_dynamics_interval"], help="UDPO's Delta")
+    parser.add_argument("--id-steps", type=int, default=DEFAULTS["inverse_dynamics_gradient_steps"], help="I's steps a refit")
     args = parser.parse_args()
     ent_coef = args.ent_coef if args.ent_coef.startswith("auto") else float(args.ent_coef)
     options = {"plan_target": args.plan_target, "ent_coef": ent_coef, "noise_std": args.noise_std}
+    options.update(inverse_dynamics_interval=args.id_interval, inverse_dynamics_gradient_steps=args.id_steps)
     runs = [(algo, coef) for algo in args.algo for coef in (args.coefs if algo == "udpo" else [0.0])]
     # seed-major order: a run cut short leaves every method with about the same seeds; lines in order of finishing
     jobs = [(algo, coef, seed, args.steps, args.every, options) for seed, (algo, coef) in itertools.product(args.seeds, runs)]

@@ -22,7 +22,8 @@ def method_name(row: dict) -> str:
     """``SAC+HER`` or ``UDPO lambda <coef>``, with the options that differ from the wall test's teacher's."""
     if row["algo"] == "sac":
         return "SAC+HER"
-    options = "".join(f", {key} {row[key]}" for key in ("plan_target", "ent_coef", "noise_std") if key in row)
+    keys = ("plan_target", "ent_coef", "noise_std", "inverse_dynamics_interval", "inverse_dynamics_gradient_steps")
+    options = "".join(f", {key} {row[key]}" for key in keys if key in row)
     return f"UDPO lambda {row['planner_coef']:g}{options}"
 
 
