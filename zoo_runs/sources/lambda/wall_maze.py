@@ -74,7 +74,8 @@ def train(algo: str, coef: float, seed: int, steps: int, every: int, options: di
     th.set_num_threads(1)
     start = time.time()
     if algo == "udpo":
-        noise = options["noise_std"] and NormalActionNoise(np.zeros(2), options["noise_std"] * np.ones(2))
+        std = options["noise_std"]
+        noise = NormalActionNoise(np.zeros(2), std * np.ones(2)) if std else None
         model = UDPO(
             "MultiInputPolicy",
             Monitor(WallMazeEnv()),
@@ -83,7 +84,7 @@ def train(algo: str, coef: float, seed: int, steps: int, every: int, options: di
             planner_coef=coef,
             plan_target=options["plan_target"],
             ent_coef=options["ent_coef"],
-            action_noise=noise or None,
+            action_noise=noise,
             seed=seed,
         )
     else:

@@ -20,7 +20,7 @@ from sb3_pilot.experiments.statistics import compare, format_estimate, method_st
 
 def method_name(row: dict) -> str:
     """``SAC+HER`` or ``UDPO lambda <coef>``, with the options that differ from the wall test's teacher's."""
-    if row["algo"] == "sac":
+    if row.get("algo", "udpo") == "sac":  # lines written before --algo are UDPO's
         return "SAC+HER"
     keys = ("plan_target", "ent_coef", "noise_std", "inverse_dynamics_interval", "inverse_dynamics_gradient_steps")
     options = "".join(f", {key} {row[key]}" for key in keys if key in row)
