@@ -34,14 +34,8 @@ from wall_maze_teacher import cross_wall_successes
 
 from sb3_pilot import UDPO
 
-#: UDPO's options as the wall test's teacher has them (``train_udpo``)
-DEFAULTS: dict[str, Any] = {
-    "plan_target": "buffer",
-    "ent_coef": "auto",
-    "noise_std": None,
-    "inverse_dynamics_interval": UDPO_SETTINGS["inverse_dynamics_interval"],
-    "inverse_dynamics_gradient_steps": UDPO_SETTINGS["inverse_dynamics_gradient_steps"],
-}
+#: UDPO's arguments as the wall test's teacher has them (``train_udpo``), and no action noise
+DEFAULTS: dict[str, Any] = {**UDPO_SETTINGS, "plan_target": "buffer", "ent_coef": "auto", "noise_std": None}
 
 
 class CrossWallEval(BaseCallback):
@@ -67,26 +61,17 @@ def train(algo: str, coef: float, seed: int, steps: int, every: int, options: di
     """
     One training run, evaluated every ``every`` steps: its JSON line.
 
-    :param options: UDPO's ``plan_target``, ``ent_coef``, ``inverse_dynamics_interval`` (Delta) and
-        ``inverse_dynamics_gradient_steps``, and ``noise_std`` (a Gaussian action noise, None: none);
-        those that differ from :data:`DEFAULTS` are written in the line (``coef`` and these are ignored for SAC)
+    :param options: UDPO's arguments over :data:`DEFAULTS` (``noise_std``: a Gaussian action noise, None: none);
+        those that differ from them are written in the line (``coef`` and these are ignored for SAC)
     """
     th.set_num_threads(1)
     start = time.time()
     if algo == "udpo":
-        std = options["noise_std"]
+        kwargs = {**DEFAULTS, **options}
+        std = kwargs.pop("noise_std")
         noise = NormalActionNoise(np.zeros(2), std * np.ones(2)) if std else None
-        model = UDPO(
-            "MultiInputPolicy",
-            Monitor(WallMazeEnv()),
-            **SMALL_HER_SETTINGS,
-            **{**UDPO_SETTINGS, **{key: options[key] for key in UDPO_SETTINGS if key in options}},
-            planner_coef=coef,
-            plan_target=options["plan_target"],
-            ent_coef=options["ent_coef"],
-            action_noise=noise,
-            seed=seed,
-        )
+        env = Monitor(WallMazeEnv())
+        model = UDPO("MultiInputPolicy", env, **SMALL_HER_SETTINGS, **kwargs, planner_coef=coef, action_noise=noise, seed=seed)
     else:
         model = SAC("MultiInputPolicy", Monitor(WallMazeEnv()), **SMALL_HER_SETTINGS, seed=seed)
     callback = CrossWallEval(every)
