@@ -14,7 +14,6 @@ from torch.utils.flop_counter import FlopCounterMode
 from sb3_pilot.experiments.benchmarks.udpo_vs_sac import TASKS, make_model
 
 
-
 class OpCounter(TorchDispatchMode):
     """Counts the ATen operators dispatched (at 64x64 a step's time is mostly their per-call overhead)."""
 
