@@ -17,6 +17,7 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.monitor import Monitor
 
 from sb3_pilot import UDPO
+from sb3_pilot.udpo.policies import InverseDynamics
 
 FAST_KWARGS = dict(
     replay_buffer_class=HerReplayBuffer,
@@ -319,3 +320,31 @@ def test_load_refuses_other_spaces(tmp_path: Path) -> None:
     other.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
     with pytest.raises(ValueError, match="Action spaces do not match"):
         UDPO.load(tmp_path / "udpo", env=other)
+
+
+def test_inverse_dynamics_fit_is_not_widened_by_actions_on_the_bounds() -> None:
+    """
+    Clipped exploration noise puts buffer actions exactly on the bounds: their pre-squash value, ``atanh(+-1)``, was fitted
+    as +-8.3 and widened ``I`` there (pre-squash std ~3, a random bang-bang action; measured: Gaussian action noise of
+    std 0.2 stopped UDPO learning the walled maze). They are fitted as +-``ACTION_FIT_BOUND``.
+    """
+    th.manual_seed(0)
+    state = th.rand(4096, 2) * 2 - 1
+    actions = (th.rand(4096, 2) * 2 - 1 + 0.3 * th.randn(4096, 2)).clamp(-1, 1)
+    next_state = state + 0.2 * actions
+    clipped = actions.abs() == 1
+    assert 0.05 < clipped.float().mean() < 0.2
+    inverse_dynamics = InverseDynamics(state_dim=2, action_dim=2, net_arch=[64, 64])
+    optimizer = th.optim.Adam(inverse_dynamics.parameters(), lr=1e-3)
+    for _ in range(1000):
+        idx = th.randint(0, len(state), (256,))
+        loss = -inverse_dynamics.log_prob(state[idx], next_state[idx], actions[idx]).mean()
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+    with th.no_grad():
+        mean, log_std = inverse_dynamics.distribution_params(state, next_state)
+        assert th.isfinite(inverse_dynamics.log_prob(state, next_state, actions)).all()
+    assert log_std[clipped].exp().median() < 1.0
+    inner = (actions.abs() < 0.9).all(dim=1)
+    assert (th.tanh(mean) - actions)[inner].abs().mean() < 0.05

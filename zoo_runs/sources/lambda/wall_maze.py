@@ -35,7 +35,13 @@ from wall_maze_teacher import cross_wall_successes
 from sb3_pilot import UDPO
 
 #: UDPO's arguments as the wall test's teacher has them (``train_udpo``), and no action noise
-DEFAULTS: dict[str, Any] = {**UDPO_SETTINGS, "plan_target": "buffer", "ent_coef": "auto", "noise_std": None}
+DEFAULTS: dict[str, Any] = {
+    **UDPO_SETTINGS,
+    "plan_target": "buffer",
+    "ent_coef": "auto",
+    "planner_learning_rate": None,
+    "noise_std": None,
+}
 
 
 class CrossWallEval(BaseCallback):
@@ -94,12 +100,14 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--plan-target", choices=["buffer", "policy"], default="buffer", help="UDPO's plan_target")
     parser.add_argument("--ent-coef", default="auto", help="UDPO's ent_coef ('auto' or a number)")
+    parser.add_argument("--planner-lr", type=float, default=None, help="UDPO's planner_learning_rate (default: its lr)")
     parser.add_argument("--noise-std", type=float, default=None, help="UDPO's Gaussian action noise (default: none)")
     parser.add_argument("--id-interval", type=int, default=DEFAULTS["inverse_dynamics_interval"], help="UDPO's Delta")
     parser.add_argument("--id-steps", type=int, default=DEFAULTS["inverse_dynamics_gradient_steps"], help="I's steps a refit")
     args = parser.parse_args()
     ent_coef = args.ent_coef if args.ent_coef.startswith("auto") else float(args.ent_coef)
     options = {"plan_target": args.plan_target, "ent_coef": ent_coef, "noise_std": args.noise_std}
+    options.update(planner_learning_rate=args.planner_lr)
     options.update(inverse_dynamics_interval=args.id_interval, inverse_dynamics_gradient_steps=args.id_steps)
     runs = [(algo, coef) for algo in args.algo for coef in (args.coefs if algo == "udpo" else [0.0])]
     # seed-major order: a run cut short leaves every method with about the same seeds; lines in order of finishing
