@@ -348,3 +348,51 @@ def test_inverse_dynamics_fit_is_not_widened_by_actions_on_the_bounds() -> None:
     assert log_std[clipped].exp().median() < 1.0
     inner = (actions.abs() < 0.9).all(dim=1)
     assert (th.tanh(mean) - actions)[inner].abs().mean() < 0.05
+
+
+def test_inverse_dynamics_jacobian_matches_autograd(filled_model: UDPO) -> None:
+    policy = filled_model.policy
+    data = filled_model.replay_buffer.sample(5)
+    plan = policy.plan_and_act(data.observations)
+    jacobian = policy.inverse_dynamics_jacobian(plan.state, plan.planned_next_state)
+    for idx in range(5):
+        expected = th.autograd.functional.jacobian(
+            lambda next_state, idx=idx: policy.inverse_dynamics.distribution_params(plan.state[idx : idx + 1], next_state)[0][
+                0
+            ],
+            plan.planned_next_state[idx : idx + 1].detach(),
+        )[:, 0]
+        assert th.allclose(jacobian[idx], expected, atol=1e-6)
+
+
+def test_linearised_log_prob_is_the_policy_density_when_inverse_dynamics_is_linear() -> None:
+    """With ``I``'s mean linear in ``s'`` and its spread independent of ``s'``, the pre-squash action of the decoupled policy
+    is exactly Gaussian, ``N(mu_I(s, E[h]), J Sigma_h J^T + Sigma_I)``: the linearised estimate is then its density."""
+    model = UDPO(
+        "MultiInputPolicy",
+        PointGoalEnv(),
+        seed=0,
+        **{**FAST_KWARGS, "policy_kwargs": {"net_arch": {"pi": [32], "qf": [32], "inverse_dynamics": []}}},
+    )
+    policy = model.policy
+    assert policy.entropy_term == "linearised"
+    state_dim = policy.state_dim
+    with th.no_grad():  # log-std output rows: no dependence on s' - s (the second half of I's input)
+        policy.inverse_dynamics.net[0].weight[policy.inverse_dynamics.action_dim :, state_dim:] = 0
+    obs = {
+        key: th.as_tensor(np.stack([PointGoalEnv().observation_space[key].sample() for _ in range(8)]))
+        for key in ("observation", "achieved_goal", "desired_goal")
+    }
+    th.manual_seed(1)
+    distribution = policy.state_planner.distribution(obs)
+    planned = distribution.sample()
+    mean, log_std = policy.inverse_dynamics.distribution_params(distribution.state, planned)
+    noise = th.randn_like(mean)
+    gaussian = mean + noise * log_std.exp()
+    estimate = policy.linearised_log_prob(distribution, planned, noise, log_std)
+    centre, _ = policy.inverse_dynamics.distribution_params(distribution.state, distribution.mean)
+    jacobian = policy.inverse_dynamics_jacobian(distribution.state, planned)
+    spread = jacobian * distribution.delta_log_std.exp().unsqueeze(1)
+    covariance = spread @ spread.transpose(1, 2) + th.diag_embed(log_std.exp() ** 2)
+    exact = th.distributions.MultivariateNormal(centre.double(), covariance.double()).log_prob(gaussian.double())
+    assert th.allclose(estimate.double(), exact, atol=1e-3)

@@ -1,4 +1,4 @@
-"""Diagonal Gaussian log-likelihoods of the state planner, the inverse dynamics and the goal planner."""
+"""Gaussian log-likelihoods of the state planner, the inverse dynamics, the decoupled policy and the goal planner."""
 
 import math
 
@@ -35,6 +35,20 @@ def gaussian_expected_nll(mean: th.Tensor, std: th.Tensor, model_mean: th.Tensor
     :return: expected NLL, shape (...)
     """
     return -gaussian_log_prob(mean, model_mean, model_log_std) + 0.5 * ((std * th.exp(-model_log_std)) ** 2).sum(dim=-1)
+
+
+def multivariate_gaussian_log_prob(value: th.Tensor, covariance: th.Tensor) -> th.Tensor:
+    """
+    Log-density of a zero-mean Gaussian with a full covariance, through its Cholesky factor.
+
+    :param value: points, shape (batch, dim)
+    :param covariance: symmetric positive-definite matrices, shape (batch, dim, dim)
+    :return: log-densities, shape (batch,)
+    """
+    cholesky = th.linalg.cholesky(covariance)
+    whitened = th.linalg.solve_triangular(cholesky, value.unsqueeze(-1), upper=False).squeeze(-1)
+    log_det = th.log(th.diagonal(cholesky, dim1=-2, dim2=-1)).sum(dim=-1)
+    return -0.5 * (whitened**2).sum(dim=-1) - log_det - value.shape[-1] * _HALF_LOG_2PI
 
 
 def squashed_gaussian_log_prob(gaussian: th.Tensor, mean: th.Tensor, log_std: th.Tensor) -> th.Tensor:

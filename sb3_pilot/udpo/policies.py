@@ -23,8 +23,10 @@ from sb3_pilot.common.distributions import (
     LOG_STD_MAX,
     LOG_STD_MIN,
     gaussian_log_prob,
+    multivariate_gaussian_log_prob,
     squashed_gaussian_log_prob,
     squashed_gaussian_sample,
+    tanh_log_det,
 )
 from sb3_pilot.common.lean import lean_optimizer_kwargs, set_training_flags
 
@@ -36,6 +38,10 @@ ACHIEVED_GOAL = "achieved_goal"
 #: (clipped exploration noise, a clipping controller) has no pre-squash value, and ``atanh(1 - 1.2e-7) = 8.3`` made those
 #: actions dominate the fit (measured on the walled maze: Gaussian action noise of std 0.2 stopped UDPO learning).
 ACTION_FIT_BOUND = math.tanh(3.0)
+#: How the decoupled policy's ``log pi(a | s, g)`` is estimated for the entropy terms (see :class:`UDPOPolicy`)
+ENTROPY_TERMS = ("linearised", "inverse_dynamics")
+#: Added to the linearised policy's covariance (float64) so that its Cholesky factor exists when ``I`` is sure
+COVARIANCE_JITTER = 1e-10
 #: Why UDPO refuses gSDE.
 NO_SDE = "UDPO does not support gSDE (use_sde=True): its action comes from the inverse dynamics, not from an SDE actor."
 
@@ -134,7 +140,7 @@ class Plan(NamedTuple):
     :param distribution: the planner's distribution ``h(. | s, g)`` (it holds ``s``)
     :param planned_next_state: the planned next state ``s' ~ h(. | s, g)``
     :param actions: the squashed action ``a ~ I(. | s, s')`` in ``[-1, 1]``
-    :param log_prob: ``log I(a | s, s')``, shape ``(batch,)``
+    :param log_prob: the policy's ``log pi(a | s, g)`` as ``UDPOPolicy.entropy_term`` estimates it, shape ``(batch,)``
     """
 
     distribution: PlannerDistribution
@@ -331,8 +337,18 @@ class UDPOPolicy(BasePolicy):
     Decoupled goal-conditioned policy ``pi(a | s, g) = E_{s' ~ h(.|s, g)} [I(a | s, s')]`` with twin Q critics
     (one :class:`~sb3_pilot.common.critics.EnsembleCritic`).
 
-    Acting samples a plan ``s' ~ h(. | s, g)`` and then an action ``a ~ I(. | s, s')``. The log-probability used for
-    the entropy terms is ``log I(a | s, s')`` at the sampled plan (as in DePO), not the intractable marginal.
+    Acting samples a plan ``s' ~ h(. | s, g)`` and then an action ``a ~ I(. | s, s')``. The marginal ``log pi(a | s, g)``
+    of the entropy terms is intractable; ``entropy_term`` says how it is estimated:
+
+    * ``"linearised"``: ``I``'s mean linearised at the sampled plan, ``J = d mu_I / d s'`` (held fixed): the pre-squash
+      action ``u = mu_I(s, s') + sigma_I eps_a`` deviates from ``mu_I(s, E[h])`` by about
+      ``J sigma_h eps_h + sigma_I eps_a ~ N(0, J diag(sigma_h^2) J^T + diag(sigma_I^2))``, whose log-density (and the
+      squashing's) is the estimate. The planner's spread ``sigma_h`` enters it, so the temperature controls how
+      widely the policy acts, as SAC's does.
+    * ``"inverse_dynamics"``: ``log I(a | s, s')`` at the sampled plan (as in DePO). ``I``'s spread is fitted to the
+      buffer, and the planner's reaches the term only through where ``I`` is unsure, so the temperature has no hold on
+      how widely the policy acts.
+
     ``last_plan_mean`` holds the planner's mean ``E[h(. | s, g)]`` of the last :meth:`predict`, which UDPO's plan
     error reuses instead of a second forward pass per env step.
 
@@ -356,6 +372,8 @@ class UDPOPolicy(BasePolicy):
     :param use_sde: must be False (accepted because SAC writes it into the ``policy_kwargs`` dict it is given)
     :param forward_dynamics: build a forward dynamics model ``T(s' | s, a)`` (``forward_dynamics`` attribute, same
         architecture as the inverse dynamics, trained with its learning rate); UDPO sets it from its ``plan_target``
+    :param entropy_term: how ``log pi(a | s, g)`` is estimated, one of :data:`ENTROPY_TERMS` (UDPO sets it from its
+        own ``entropy_term``; ``"inverse_dynamics"`` here, for policies saved before it existed)
     """
 
     state_planner: StatePlanner
@@ -383,9 +401,12 @@ class UDPOPolicy(BasePolicy):
         freeze_state_planner: bool = False,
         use_sde: bool = False,
         forward_dynamics: bool = False,
+        entropy_term: str = "inverse_dynamics",
     ):
         if use_sde:
             raise ValueError(NO_SDE)
+        if entropy_term not in ENTROPY_TERMS:
+            raise ValueError(f"entropy_term must be one of {ENTROPY_TERMS}, got {entropy_term!r}.")
         check_observation_space(observation_space)
         super().__init__(
             observation_space,
@@ -410,6 +431,7 @@ class UDPOPolicy(BasePolicy):
         self.inverse_dynamics_lr_schedule = inverse_dynamics_lr_schedule
         self.freeze_state_planner = freeze_state_planner
         self.use_forward_dynamics = forward_dynamics
+        self.entropy_term = entropy_term
         self._build(lr_schedule)
 
     def _build(self, lr_schedule: Schedule) -> None:
@@ -499,6 +521,7 @@ class UDPOPolicy(BasePolicy):
             features_extractor_kwargs=self.features_extractor_kwargs,
             freeze_state_planner=self.freeze_state_planner,
             forward_dynamics=self.use_forward_dynamics,
+            entropy_term=self.entropy_term,
         )
         return data
 
@@ -538,21 +561,71 @@ class UDPOPolicy(BasePolicy):
         Plan a next state ``s' ~ h(. | s, g)`` and act towards it with ``a ~ I(. | s, s')``.
 
         :param obs: observation batch as tensors
-        :param deterministic: use the means of the planner and of the inverse dynamics
-        :return: the plan, its action and ``log I(a | s, s')``
+        :param deterministic: use the means of the planner and of the inverse dynamics (``log_prob`` is then
+            ``log I``'s, whatever ``entropy_term``)
+        :return: the plan, its action and ``log pi(a | s, g)`` (see ``entropy_term``)
         """
         distribution = self.state_planner.distribution(obs)
         planned_next_state = distribution.sample(deterministic)
-        actions, log_prob = self.inverse_dynamics(distribution.state, planned_next_state, deterministic=deterministic)
-        return Plan(distribution, planned_next_state, actions, log_prob)
+        mean, log_std = self.inverse_dynamics.distribution_params(distribution.state, planned_next_state)
+        if deterministic or self.entropy_term == "inverse_dynamics":
+            actions, log_prob = squashed_gaussian_sample(mean, log_std, deterministic=deterministic)
+            return Plan(distribution, planned_next_state, actions, log_prob)
+        noise = th.randn_like(mean)
+        gaussian = mean + noise * th.exp(log_std)
+        log_prob = self.linearised_log_prob(distribution, planned_next_state, noise, log_std) - tanh_log_det(gaussian)
+        return Plan(distribution, planned_next_state, th.tanh(gaussian), log_prob)
+
+    def linearised_log_prob(
+        self, distribution: PlannerDistribution, planned_next_state: th.Tensor, noise: th.Tensor, log_std: th.Tensor
+    ) -> th.Tensor:
+        """
+        ``log pi(u | s, g)`` of a pre-squash action ``u = mu_I(s, s') + sigma_I * noise`` drawn at a reparameterised
+        plan ``s'``, with ``I``'s mean linearised at ``s'`` (``entropy_term="linearised"``): the density of
+        ``J sigma_h eps_h + sigma_I noise`` under ``N(0, J diag(sigma_h^2) J^T + diag(sigma_I^2))``, in float64.
+
+        :param distribution: the planner's ``h(. | s, g)``
+        :param planned_next_state: the plan ``s'`` drawn from it
+        :param noise: the standard normal draw ``eps_a`` of the action
+        :param log_std: ``log sigma_I(s, s')``
+        :return: log-densities, shape ``(batch,)``
+        """
+        planner_std = th.exp(distribution.delta_log_std)
+        planner_noise = ((planned_next_state - distribution.mean) / planner_std).detach()
+        jacobian = self.inverse_dynamics_jacobian(distribution.state, planned_next_state)
+        spread = jacobian.double() * planner_std.double().unsqueeze(1)  # J diag(sigma_h)
+        action_std = th.exp(log_std).double()
+        deviation = (spread @ planner_noise.double().unsqueeze(-1)).squeeze(-1) + action_std * noise.double()
+        jitter = COVARIANCE_JITTER * th.eye(action_std.shape[-1], dtype=th.float64, device=action_std.device)
+        covariance = spread @ spread.transpose(1, 2) + th.diag_embed(action_std**2) + jitter
+        return multivariate_gaussian_log_prob(deviation, covariance).to(log_std.dtype)
+
+    def inverse_dynamics_jacobian(self, state: th.Tensor, next_state: th.Tensor) -> th.Tensor:
+        """
+        ``J = d mu_I(s, s') / d s'``, the Jacobian of the inverse dynamics' pre-squash mean in the planned state, held
+        fixed (no gradient flows through it): ``action_dim`` copies of the batch through ``I`` and one backward pass.
+
+        :param state: planner states ``s``, shape ``(batch, state_dim)``
+        :param next_state: planned states ``s'``, same shape
+        :return: shape ``(batch, action_dim, state_dim)``
+        """
+        batch, action_dim = next_state.shape[0], self.inverse_dynamics.action_dim
+        with th.enable_grad():
+            copies = next_state.detach().repeat_interleave(action_dim, dim=0).requires_grad_(True)
+            mean, _ = self.inverse_dynamics.distribution_params(state.detach().repeat_interleave(action_dim, dim=0), copies)
+            selector = th.eye(action_dim, dtype=mean.dtype, device=mean.device).repeat(batch, 1)
+            (jacobian,) = th.autograd.grad(mean, copies, grad_outputs=selector)
+        return jacobian.view(batch, action_dim, -1)
 
     def forward(self, obs: PyTorchObs, deterministic: bool = False) -> th.Tensor:
         return self._predict(obs, deterministic=deterministic)
 
     def _predict(self, observation: PyTorchObs, deterministic: bool = False) -> th.Tensor:
-        plan = self.plan_and_act(observation, deterministic)
-        self.last_plan_mean = plan.distribution.mean
-        return plan.actions
+        # Acting needs no log-probability: the plan and I's action only
+        distribution = self.state_planner.distribution(observation)
+        self.last_plan_mean = distribution.mean
+        actions, _ = self.inverse_dynamics(distribution.state, distribution.sample(deterministic), deterministic)
+        return actions
 
     def predict_next_state(self, observation: np.ndarray | dict[str, np.ndarray], deterministic: bool = True) -> np.ndarray:
         """

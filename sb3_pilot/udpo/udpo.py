@@ -22,6 +22,7 @@ from torch.nn import functional as F
 from sb3_pilot.common.lean import LeanSACSteps, LossRecorder
 from sb3_pilot.common.utils import check_number
 from sb3_pilot.udpo.policies import (
+    ENTROPY_TERMS,
     NO_SDE,
     ForwardDynamics,
     InverseDynamics,
@@ -81,7 +82,11 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         following them reaches the far goal for every k = 1..5, but 11/40 of them lie in walls (4-6/40 with
         ``"buffer"``) and UDPO runs 0.81x SAC's steps/s on FetchReach (0.98x with ``"buffer"``): not the default
         until it is measured on more seeds and tasks.
-    - The log-probability of the entropy terms is ``log I(a | s, s')`` at the sampled plan ``s'`` (as in DePO).
+    - The entropy terms need ``log pi(a | s, g)``, intractable for the decoupled policy. ``entropy_term="linearised"``
+      (default) estimates it with ``I``'s mean linearised at the sampled plan, so that the planner's spread enters it
+      and the temperature controls how widely the policy acts, as SAC's does (see :class:`UDPOPolicy`);
+      ``"inverse_dynamics"`` uses ``log I(a | s, s')`` at the sampled plan (as in DePO and sb3-pilot <= 0.2), on
+      which the planner's spread has no hold.
 
     The planner state ``s`` is ``observation`` concatenated with ``achieved_goal`` for Dict goal observations, so the
     goal mapping ``phi`` is the achieved-goal slice of the state (``policy.goal_slice``); with a Box observation
@@ -123,6 +128,8 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
     :param plan_target: what the planner's likelihood term fits: ``"policy"``, the next state of the policy's own
         action predicted by a learned forward dynamics model (immediate landmarks), or ``"buffer"``, the real next
         state of buffer transitions (the paper's implementation)
+    :param entropy_term: how the entropy terms estimate ``log pi(a | s, g)``: ``"linearised"`` (the decoupled policy
+        with ``I`` linearised at the plan) or ``"inverse_dynamics"`` (``log I(a | s, s')``, DePO's)
     :param inverse_dynamics_interval: ``Delta``, number of gradient steps between two refits of the inverse dynamics
         (paper default 1500, 200 for Fetch)
     :param inverse_dynamics_gradient_steps: supervised gradient steps of each refit of the inverse dynamics
@@ -171,6 +178,7 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         use_sde: bool = False,
         planner_coef: float = 1e-3,
         plan_target: str = "buffer",
+        entropy_term: str = "linearised",
         inverse_dynamics_interval: int = 1500,
         inverse_dynamics_gradient_steps: int = 50,
         planner_learning_rate: float | Schedule | None = None,
@@ -188,6 +196,8 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         check_number("planner_coef (lambda)", planner_coef, minimum=0)
         if plan_target not in PLAN_TARGETS:
             raise ValueError(f"plan_target must be one of {PLAN_TARGETS}, got {plan_target!r}.")
+        if entropy_term not in ENTROPY_TERMS:
+            raise ValueError(f"entropy_term must be one of {ENTROPY_TERMS}, got {entropy_term!r}.")
         for name, rate in (
             ("learning_rate", learning_rate),
             ("planner_learning_rate", planner_learning_rate),
@@ -235,6 +245,7 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         self.ent_coef_optimizer: th.optim.Adam | None = None
         self.planner_coef = planner_coef
         self.plan_target = plan_target
+        self.entropy_term = entropy_term
         self.inverse_dynamics_interval = inverse_dynamics_interval
         self.inverse_dynamics_gradient_steps = inverse_dynamics_gradient_steps
         self.planner_learning_rate = planner_learning_rate
@@ -271,6 +282,7 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
             "planner_lr_schedule": self.planner_lr_schedule,
             "inverse_dynamics_lr_schedule": self.inverse_dynamics_lr_schedule,
             "forward_dynamics": self.plan_target == "policy",
+            "entropy_term": self.entropy_term,
         }
         super()._setup_model()
         self._create_aliases()
@@ -327,11 +339,11 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
             plan = self.policy.plan_and_act(replay_data.observations)
             log_prob = plan.log_prob.reshape(-1, 1)
 
-            # Entropy coefficient loss (SAC), with log I(a | s, s') as the policy's log-probability
+            # Entropy coefficient loss (SAC), with the policy's log-probability as entropy_term estimates it
             ent_coef = self._entropy_coef_step(log_prob, losses)
 
             # Critic loss (SAC): 1/2 sum_i (Q_i(s, a, g) - y)^2,
-            # y = r + gamma (1 - d) (min_i Q'_i(s', a', g) - alpha log I(a' | s', s'')), s'' ~ h(. | s', g)
+            # y = r + gamma (1 - d) (min_i Q'_i(s', a', g) - alpha log pi(a' | s', g)), a' ~ I(. | s', s''), s'' ~ h(. | s', g)
             with th.no_grad():
                 next_plan = self.policy.plan_and_act(replay_data.next_observations)
                 next_q_values = self.critic_target.q_values(replay_data.next_observations, next_plan.actions).amin(dim=0)
@@ -340,7 +352,7 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
 
             self._critic_step(replay_data.observations, replay_data.actions, target_q_values, losses)
 
-            # DePG actor loss (eq. "depg"): E[alpha log I(a | s, s') - min_i Q_i(s, a, g)] through the frozen I and critics
+            # DePG actor loss (eq. "depg"): E[alpha log pi(a | s, g) - min_i Q_i(s, a, g)] through the frozen I and critics
             min_qf_pi = self.critic.q_values(replay_data.observations, plan.actions).amin(dim=0)
             actor_loss = (ent_coef * log_prob - min_qf_pi).mean()
             # Planner likelihood term, the paper's constraint max E_{(s,s') ~ pi}[h(s' | s, g)]: -log h(s'_target | s, g)

@@ -3,7 +3,10 @@ UDPO's lambda (``planner_coef``) on the wall maze: the wall test's teacher (``te
 construction, 20k steps) with each lambda and seed, evaluated every 2k steps on the cross-wall goals of
 ``tests/wall_maze_teacher.py``'s four start/goal pairs (deterministic once + sampled 5 times: 24 episodes) and on
 ``wall_detour_end``'s pair (the test's). The evaluation restores torch's and NumPy's generators, so the run is the one
-``train_udpo`` makes (checked: the 20k ``wall_detour_end`` equals the test's). One JSON line per run. ``--algo sac``
+``train_udpo`` makes (checked: the line's ``detour_end``, after the last gradient step, equals the test's; the 20k
+checkpoint comes one gradient step earlier). The test's teacher takes UDPO's defaults, so it is the run of
+``--entropy-term linearised``; without it the runs are those of the former entropy term (:data:`DEFAULTS`, what every
+line before the option has). One JSON line per run. ``--algo sac``
 trains SB3's SAC + HER with the same settings (``SMALL_HER_SETTINGS``) instead, the baseline; ``--jobs`` runs that
 many trainings side by side (one process each, one torch thread).
 
@@ -34,10 +37,12 @@ from wall_maze_teacher import cross_wall_successes
 
 from sb3_pilot import UDPO
 
-#: UDPO's arguments as the wall test's teacher has them (``train_udpo``), and no action noise
+#: UDPO's arguments as the wall test's teacher has them (``train_udpo``), and no action noise; ``entropy_term`` is
+#: ``"inverse_dynamics"``, what every UDPO had before the option existed (UDPO's default is now ``"linearised"``)
 DEFAULTS: dict[str, Any] = {
     **UDPO_SETTINGS,
     "plan_target": "buffer",
+    "entropy_term": "inverse_dynamics",
     "ent_coef": "auto",
     "planner_learning_rate": None,
     "noise_std": None,
@@ -99,6 +104,7 @@ def main() -> None:
     parser.add_argument("--every", type=int, default=2000)
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--plan-target", choices=["buffer", "policy"], default="buffer", help="UDPO's plan_target")
+    parser.add_argument("--entropy-term", choices=["inverse_dynamics", "linearised"], default="inverse_dynamics")
     parser.add_argument("--ent-coef", default="auto", help="UDPO's ent_coef ('auto' or a number)")
     parser.add_argument("--planner-lr", type=float, default=None, help="UDPO's planner_learning_rate (default: its lr)")
     parser.add_argument("--noise-std", type=float, default=None, help="UDPO's Gaussian action noise (default: none)")
@@ -107,7 +113,7 @@ def main() -> None:
     args = parser.parse_args()
     ent_coef = args.ent_coef if args.ent_coef.startswith("auto") else float(args.ent_coef)
     options = {"plan_target": args.plan_target, "ent_coef": ent_coef, "noise_std": args.noise_std}
-    options.update(planner_learning_rate=args.planner_lr)
+    options.update(planner_learning_rate=args.planner_lr, entropy_term=args.entropy_term)
     options.update(inverse_dynamics_interval=args.id_interval, inverse_dynamics_gradient_steps=args.id_steps)
     runs = [(algo, coef) for algo in args.algo for coef in (args.coefs if algo == "udpo" else [0.0])]
     # seed-major order: a run cut short leaves every method with about the same seeds; lines in order of finishing

@@ -7,7 +7,9 @@ against SAC + HER's; how many seeds' deterministic test pair (``wall_detour_end`
     python zoo_runs/sources/lambda/wall_maze_table.py zoo_runs/sources/lambda/wall_maze_16seeds.jsonl \
         --labelled "2-core" zoo_runs/sources/lambda/wall_maze_16seeds_local.jsonl
 
-``--labelled LABEL FILE ...``: runs made elsewhere (another machine), their methods named with the label.
+``--labelled LABEL FILE ...`` (repeatable): runs made elsewhere (another machine, other code), their methods named with
+the label.
+``--versus A B``: also method A against method B (names as in the table): area gain and steps-to-90% ratio.
 """
 
 import argparse
@@ -22,7 +24,15 @@ def method_name(row: dict) -> str:
     """``SAC+HER`` or ``UDPO lambda <coef>``, with the options that differ from the wall test's teacher's."""
     if row.get("algo", "udpo") == "sac":  # lines written before --algo are UDPO's
         return "SAC+HER"
-    keys = ("plan_target", "ent_coef", "noise_std", "inverse_dynamics_interval", "inverse_dynamics_gradient_steps")
+    keys = (
+        "entropy_term",
+        "plan_target",
+        "ent_coef",
+        "planner_learning_rate",
+        "noise_std",
+        "inverse_dynamics_interval",
+        "inverse_dynamics_gradient_steps",
+    )
     options = "".join(f", {key} {row[key]}" for key in keys if key in row)
     return f"UDPO lambda {row['planner_coef']:g}{options}"
 
@@ -30,9 +40,13 @@ def method_name(row: dict) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("files", type=Path, nargs="+")
-    parser.add_argument("--labelled", nargs="+", default=[], metavar="LABEL FILE", help="a label, then its files")
+    parser.add_argument(
+        "--labelled", nargs="+", action="append", default=[], metavar="LABEL FILE", help="a label, then its files"
+    )
+    parser.add_argument("--versus", nargs=2, action="append", default=[], metavar=("A", "B"), help="A against B")
     args = parser.parse_args()
-    labelled = [("", path) for path in args.files] + [(f" ({args.labelled[0]})", Path(f)) for f in args.labelled[1:]]
+    labelled = [("", path) for path in args.files]
+    labelled += [(f" ({label})", Path(path)) for label, *paths in args.labelled for path in paths]
     runs: dict[str, list[dict]] = defaultdict(list)
     for label, path in labelled:
         for line in path.read_text().splitlines():
@@ -61,6 +75,10 @@ def main() -> None:
         gain = "" if baseline else format_estimate(compare(runs[method], runs["SAC+HER"])["area_gain"])
         pairs = " / ".join(str(sum(run["pair"][step] for run in runs[method])) for step in (12_000, 20_000))
         print(f"| {method} | {stats['seeds']} | {' | '.join(steps)} | {format_estimate(stats['area'])} | {gain} | {pairs} |")
+    for first, second in args.versus:
+        versus = compare(runs[first], runs[second])
+        ratio = format_estimate(versus["steps_to_90_ratio"]) if versus["steps_to_90_ratio"] else "-"
+        print(f"\n{first} against {second}: area {format_estimate(versus['area_gain'])}, steps to 90% {ratio}x")
 
 
 if __name__ == "__main__":
