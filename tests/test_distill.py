@@ -202,19 +202,16 @@ def test_wall_maze_landmarks_go_around_the_wall():
     """
     A teacher that goes around the wall, and the landmarks distilled from its real steps go around too: the path
     from (-0.5, -0.6) to (0.5, -0.6) crosses x = 0 only through the gap (y > 0, with 0.1 of slack), snapped to the
-    source's positions (the default) or not. The teacher is UDPO with its defaults, 20k steps, seed 1 (seed 3 if seed
-    1 does not learn the detour on this machine); the student needs the default width, a [64, 64] one cuts through the
-    thin wall (tests/wall_maze_teacher.py). This tests distillation from a teacher that learnt, not how often UDPO
-    learns: measured at 16 seeds (zoo_runs/sources/lambda/README.md), UDPO's defaults (the linearised entropy term)
-    take this pair round the wall with the final model on 14 of 16 seeds (1 and 3 among them, from 12k and 14k on),
-    with the former entropy term (log I) at lambda 1e-3 on 5 of 16, where SAC + HER with the same settings does on 15.
+    source's positions (the default) or not. The teacher is UDPO with its defaults (lambda 1e-3), 20k steps, seed 2;
+    the student needs the default width, a [64, 64] one cuts through the thin wall (tests/wall_maze_teacher.py).
+    This tests distillation from a teacher that learnt, not how often UDPO learns: measured at 16 seeds
+    (zoo_runs/sources/lambda/README.md), UDPO's defaults take this pair round the wall at 20k on 3-10 of 16 seeds (seed
+    2 among them, with and without the fit bound of I's actions), SAC + HER on 15, UDPO with entropy_term="linearised"
+    on 14 (not seed 2: its final model stops at the wall's end).
     """
-    for seed in (1, 3):
-        model = train_udpo(WallMazeEnv, total_timesteps=20_000, seed=seed, planner_coef=None)  # None: UDPO's default lambda
-        reached, end = wall_detour_end(model)
-        if reached:
-            break
-    assert reached, f"the teacher (seeds 1 and 3) does not go around the wall: it ends at {end}"
+    model = train_udpo(WallMazeEnv, total_timesteps=20_000, seed=2, planner_coef=None)  # None: UDPO's default lambda
+    reached, end = wall_detour_end(model)
+    assert reached, f"the teacher does not go around the wall: it ends at {end}"
 
     planner = distill_goal_planner(model, n_samples=20_000, gradient_steps=5000, net_arch=[256, 256])
     for snap in (None, False):  # plan's default (snapped: the planner has support goals), raw

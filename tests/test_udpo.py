@@ -207,9 +207,9 @@ def test_predict_next_state_is_planner_state(filled_model: UDPO) -> None:
     np.testing.assert_allclose(filled_model.predict_next_state(batch)[0], planned, rtol=1e-5, atol=1e-6)
 
 
-@pytest.mark.parametrize("plan_target", ["buffer", "policy"])
-def test_save_load_round_trip(tmp_path: Path, plan_target: str) -> None:
-    model = UDPO("MultiInputPolicy", PointGoalEnv(), seed=1, plan_target=plan_target, **FAST_KWARGS)
+@pytest.mark.parametrize(("plan_target", "entropy_term"), [("buffer", "inverse_dynamics"), ("policy", "linearised")])
+def test_save_load_round_trip(tmp_path: Path, plan_target: str, entropy_term: str) -> None:
+    model = UDPO("MultiInputPolicy", PointGoalEnv(), seed=1, plan_target=plan_target, entropy_term=entropy_term, **FAST_KWARGS)
     model.learn(300)
     model.save(tmp_path / "udpo")
     model.save_replay_buffer(tmp_path / "buffer")
@@ -217,6 +217,7 @@ def test_save_load_round_trip(tmp_path: Path, plan_target: str) -> None:
     loaded = UDPO.load(tmp_path / "udpo", env=env)
     loaded.load_replay_buffer(tmp_path / "buffer")
     assert loaded.replay_buffer.size() == model.replay_buffer.size()
+    assert loaded.entropy_term == loaded.policy.entropy_term == entropy_term
     for seed in range(5):
         obs, _ = env.reset(seed=seed)
         np.testing.assert_array_equal(model.predict(obs, deterministic=True)[0], loaded.predict(obs, deterministic=True)[0])
@@ -305,6 +306,7 @@ class DiscretePointEnv(PointGoalEnv):
         (DiscretePointEnv, {}, "continuous"),
         (PointGoalEnv, {"planner_coef": -0.1}, "planner_coef"),
         (PointGoalEnv, {"plan_target": "real"}, "plan_target"),
+        (PointGoalEnv, {"entropy_term": "log_i"}, "entropy_term must be one of"),
         (PointGoalEnv, {"inverse_dynamics_interval": 0}, "inverse_dynamics_interval"),
     ],
 )
@@ -372,6 +374,7 @@ def test_linearised_log_prob_is_the_policy_density_when_inverse_dynamics_is_line
         "MultiInputPolicy",
         PointGoalEnv(),
         seed=0,
+        entropy_term="linearised",
         **{**FAST_KWARGS, "policy_kwargs": {"net_arch": {"pi": [32], "qf": [32], "inverse_dynamics": []}}},
     )
     policy = model.policy

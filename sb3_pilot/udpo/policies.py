@@ -39,7 +39,7 @@ ACHIEVED_GOAL = "achieved_goal"
 #: actions dominate the fit (measured on the walled maze: Gaussian action noise of std 0.2 stopped UDPO learning).
 ACTION_FIT_BOUND = math.tanh(3.0)
 #: How the decoupled policy's ``log pi(a | s, g)`` is estimated for the entropy terms (see :class:`UDPOPolicy`)
-ENTROPY_TERMS = ("linearised", "inverse_dynamics")
+ENTROPY_TERMS = ("inverse_dynamics", "linearised")
 #: Added to the linearised policy's covariance (float64) so that its Cholesky factor exists when ``I`` is sure
 COVARIANCE_JITTER = 1e-10
 #: Why UDPO refuses gSDE.
@@ -340,14 +340,14 @@ class UDPOPolicy(BasePolicy):
     Acting samples a plan ``s' ~ h(. | s, g)`` and then an action ``a ~ I(. | s, s')``. The marginal ``log pi(a | s, g)``
     of the entropy terms is intractable; ``entropy_term`` says how it is estimated:
 
+    * ``"inverse_dynamics"`` (default): ``log I(a | s, s')`` at the sampled plan (as in DePO). ``I``'s spread is
+      fitted to the buffer, and the planner's reaches the term only through where ``I`` is unsure, so the temperature
+      has no hold on how widely the policy acts.
     * ``"linearised"``: ``I``'s mean linearised at the sampled plan, ``J = d mu_I / d s'`` (held fixed): the pre-squash
       action ``u = mu_I(s, s') + sigma_I eps_a`` deviates from ``mu_I(s, E[h])`` by about
       ``J sigma_h eps_h + sigma_I eps_a ~ N(0, J diag(sigma_h^2) J^T + diag(sigma_I^2))``, whose log-density (and the
       squashing's) is the estimate. The planner's spread ``sigma_h`` enters it, so the temperature controls how
       widely the policy acts, as SAC's does.
-    * ``"inverse_dynamics"``: ``log I(a | s, s')`` at the sampled plan (as in DePO). ``I``'s spread is fitted to the
-      buffer, and the planner's reaches the term only through where ``I`` is unsure, so the temperature has no hold on
-      how widely the policy acts.
 
     ``last_plan_mean`` holds the planner's mean ``E[h(. | s, g)]`` of the last :meth:`predict`, which UDPO's plan
     error reuses instead of a second forward pass per env step.
@@ -373,7 +373,7 @@ class UDPOPolicy(BasePolicy):
     :param forward_dynamics: build a forward dynamics model ``T(s' | s, a)`` (``forward_dynamics`` attribute, same
         architecture as the inverse dynamics, trained with its learning rate); UDPO sets it from its ``plan_target``
     :param entropy_term: how ``log pi(a | s, g)`` is estimated, one of :data:`ENTROPY_TERMS` (UDPO sets it from its
-        own ``entropy_term``; ``"inverse_dynamics"`` here, for policies saved before it existed)
+        own ``entropy_term``)
     """
 
     state_planner: StatePlanner
@@ -582,7 +582,8 @@ class UDPOPolicy(BasePolicy):
         """
         ``log pi(u | s, g)`` of a pre-squash action ``u = mu_I(s, s') + sigma_I * noise`` drawn at a reparameterised
         plan ``s'``, with ``I``'s mean linearised at ``s'`` (``entropy_term="linearised"``): the density of
-        ``J sigma_h eps_h + sigma_I noise`` under ``N(0, J diag(sigma_h^2) J^T + diag(sigma_I^2))``, in float64.
+        ``J sigma_h eps_h + sigma_I noise`` under ``N(0, J diag(sigma_h^2) J^T + diag(sigma_I^2))``, in float64 (float32
+        on MPS).
 
         :param distribution: the planner's ``h(. | s, g)``
         :param planned_next_state: the plan ``s'`` drawn from it
@@ -590,13 +591,15 @@ class UDPOPolicy(BasePolicy):
         :param log_std: ``log sigma_I(s, s')``
         :return: log-densities, shape ``(batch,)``
         """
+        dtype = th.float32 if log_std.device.type == "mps" else th.float64  # MPS has no float64
         planner_std = th.exp(distribution.delta_log_std)
-        planner_noise = ((planned_next_state - distribution.mean) / planner_std).detach()
+        planner_noise = ((planned_next_state - distribution.mean) / planner_std).detach().to(dtype)
+        planner_std = planner_std.to(dtype)
         jacobian = self.inverse_dynamics_jacobian(distribution.state, planned_next_state)
-        spread = jacobian.double() * planner_std.double().unsqueeze(1)  # J diag(sigma_h)
-        action_std = th.exp(log_std).double()
-        deviation = (spread @ planner_noise.double().unsqueeze(-1)).squeeze(-1) + action_std * noise.double()
-        jitter = COVARIANCE_JITTER * th.eye(action_std.shape[-1], dtype=th.float64, device=action_std.device)
+        spread = jacobian.to(dtype) * planner_std.unsqueeze(1)  # J diag(sigma_h)
+        action_std = th.exp(log_std).to(dtype)
+        deviation = (spread @ planner_noise.unsqueeze(-1)).squeeze(-1) + action_std * noise.to(dtype)
+        jitter = COVARIANCE_JITTER * th.eye(action_std.shape[-1], dtype=dtype, device=action_std.device)
         covariance = spread @ spread.transpose(1, 2) + th.diag_embed(action_std**2) + jitter
         return multivariate_gaussian_log_prob(deviation, covariance).to(log_std.dtype)
 

@@ -4,9 +4,7 @@ construction, 20k steps) with each lambda and seed, evaluated every 2k steps on 
 ``tests/wall_maze_teacher.py``'s four start/goal pairs (deterministic once + sampled 5 times: 24 episodes) and on
 ``wall_detour_end``'s pair (the test's). The evaluation restores torch's and NumPy's generators, so the run is the one
 ``train_udpo`` makes (checked: the line's ``detour_end``, after the last gradient step, equals the test's; the 20k
-checkpoint comes one gradient step earlier). The test's teacher takes UDPO's defaults, so it is the run of
-``--entropy-term linearised``; without it the runs are those of the former entropy term (:data:`DEFAULTS`, what every
-line before the option has). One JSON line per run. ``--algo sac``
+checkpoint comes one gradient step earlier). One JSON line per run. ``--algo sac``
 trains SB3's SAC + HER with the same settings (``SMALL_HER_SETTINGS``) instead, the baseline; ``--jobs`` runs that
 many trainings side by side (one process each, one torch thread).
 
@@ -37,8 +35,7 @@ from wall_maze_teacher import cross_wall_successes
 
 from sb3_pilot import UDPO
 
-#: UDPO's arguments as the wall test's teacher has them (``train_udpo``), and no action noise; ``entropy_term`` is
-#: ``"inverse_dynamics"``, what every UDPO had before the option existed (UDPO's default is now ``"linearised"``)
+#: UDPO's arguments as the wall test's teacher has them (``train_udpo``), and no action noise
 DEFAULTS: dict[str, Any] = {
     **UDPO_SETTINGS,
     "plan_target": "buffer",
