@@ -1,6 +1,7 @@
 """Gaussian log-likelihoods of the state planner, the inverse dynamics, the decoupled policy and the goal planner."""
 
 import math
+from collections.abc import Callable
 
 import torch as th
 from torch.nn import functional as F
@@ -80,17 +81,25 @@ def reparameterised_log_prob(noise: th.Tensor, log_std: th.Tensor) -> th.Tensor:
     return (-0.5 * noise**2 - log_std - _HALF_LOG_2PI).sum(dim=-1)
 
 
-def squashed_gaussian_sample(mean: th.Tensor, log_std: th.Tensor, deterministic: bool = False) -> tuple[th.Tensor, th.Tensor]:
+def squashed_gaussian_sample(
+    mean: th.Tensor,
+    log_std: th.Tensor,
+    deterministic: bool = False,
+    pre_squash_log_prob: Callable[[th.Tensor, th.Tensor], th.Tensor] = reparameterised_log_prob,
+) -> tuple[th.Tensor, th.Tensor]:
     """
     Reparameterised sample of ``tanh(u)``, ``u ~ N(mean, exp(log_std))``, and its log-probability.
 
     :param mean: mean of the pre-squash Gaussian
     :param log_std: log standard deviation of the pre-squash Gaussian
-    :param deterministic: return ``tanh(mean)`` instead of a sample
+    :param deterministic: return ``tanh(mean)`` instead of a sample (its log-probability is then the diagonal
+        Gaussian's, whatever ``pre_squash_log_prob``)
+    :param pre_squash_log_prob: the log-density of ``u`` from its standard normal draw and ``log_std``; the diagonal
+        Gaussian's by default, UDPO's linearised policy density for ``entropy_term="linearised"``
     :return: the squashed sample and its log-probability (shape ``(batch,)``)
     """
     if deterministic:
         return th.tanh(mean), squashed_gaussian_log_prob(mean, mean, log_std)
     noise = th.randn_like(mean)
     gaussian = mean + noise * th.exp(log_std)
-    return th.tanh(gaussian), reparameterised_log_prob(noise, log_std) - tanh_log_det(gaussian)
+    return th.tanh(gaussian), pre_squash_log_prob(noise, log_std) - tanh_log_det(gaussian)

@@ -1,5 +1,6 @@
 """Policies of UDPO: the goal-conditioned state planner ``h``, the inverse dynamics ``I`` and twin Q critics."""
 
+import functools
 import math
 from typing import Any, NamedTuple
 
@@ -24,9 +25,9 @@ from sb3_pilot.common.distributions import (
     LOG_STD_MIN,
     gaussian_log_prob,
     multivariate_gaussian_log_prob,
+    reparameterised_log_prob,
     squashed_gaussian_log_prob,
     squashed_gaussian_sample,
-    tanh_log_det,
 )
 from sb3_pilot.common.lean import lean_optimizer_kwargs, set_training_flags
 
@@ -568,13 +569,13 @@ class UDPOPolicy(BasePolicy):
         distribution = self.state_planner.distribution(obs)
         planned_next_state = distribution.sample(deterministic)
         mean, log_std = self.inverse_dynamics.distribution_params(distribution.state, planned_next_state)
-        if deterministic or self.entropy_term == "inverse_dynamics":
-            actions, log_prob = squashed_gaussian_sample(mean, log_std, deterministic=deterministic)
-            return Plan(distribution, planned_next_state, actions, log_prob)
-        noise = th.randn_like(mean)
-        gaussian = mean + noise * th.exp(log_std)
-        log_prob = self.linearised_log_prob(distribution, planned_next_state, noise, log_std) - tanh_log_det(gaussian)
-        return Plan(distribution, planned_next_state, th.tanh(gaussian), log_prob)
+        pre_squash_log_prob = (
+            reparameterised_log_prob
+            if self.entropy_term == "inverse_dynamics"
+            else functools.partial(self.linearised_log_prob, distribution, planned_next_state)
+        )
+        actions, log_prob = squashed_gaussian_sample(mean, log_std, deterministic, pre_squash_log_prob)
+        return Plan(distribution, planned_next_state, actions, log_prob)
 
     def linearised_log_prob(
         self, distribution: PlannerDistribution, planned_next_state: th.Tensor, noise: th.Tensor, log_std: th.Tensor
