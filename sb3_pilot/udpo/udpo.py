@@ -87,8 +87,9 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
       plan, as DePO does, on which the planner's spread has no hold; ``"linearised"`` linearises ``I``'s mean at the
       sampled plan, so that the planner's spread enters it and the temperature controls how widely the policy acts, as
       SAC's does. Measured (``zoo_runs/sources/lambda``): on the walled maze ``"linearised"`` reaches 90% success on
-      13 of 16 seeds against 2-4 (area +0.20 [0.02, 0.33]), on FetchReach it reaches 90% one evaluation later (6k steps
-      against 5k), and its gradient step costs 1.5-1.7x; not the default until measured on the other sources.
+      13 of 16 seeds against 2-4 (area +0.20 [0.02, 0.33]), but on FetchReach, PointLocomotion and Reacher it reaches
+      90% later than the default (1.2x, 1.4x, 1.3x its steps) and does not learn FetchPush either; its gradient step
+      costs 1.5-1.7x. So the default stays DePO's; ``"linearised"`` is for tasks where a detour must be found.
 
     The planner state ``s`` is ``observation`` concatenated with ``achieved_goal`` for Dict goal observations, so the
     goal mapping ``phi`` is the achieved-goal slice of the state (``policy.goal_slice``); with a Box observation
