@@ -23,6 +23,7 @@ from sb3_pilot.common.critics import EnsembleCritic
 from sb3_pilot.common.distributions import (
     LOG_STD_MAX,
     LOG_STD_MIN,
+    beta_gaussian_nll,
     gaussian_log_prob,
     multivariate_gaussian_log_prob,
     reparameterised_log_prob,
@@ -132,6 +133,10 @@ class PlannerDistribution(NamedTuple):
     def log_prob(self, next_state: th.Tensor) -> th.Tensor:
         """``log h(s' | s, g)`` of next states ``s'``, shape ``(batch,)``."""
         return gaussian_log_prob(next_state - self.state, self.delta_mean, self.delta_log_std)
+
+    def beta_nll(self, next_state: th.Tensor, beta: float) -> th.Tensor:
+        """``-log h(s' | s, g)`` with each dimension weighted by its variance to the power ``beta`` (beta-NLL)."""
+        return beta_gaussian_nll(next_state - self.state, self.delta_mean, self.delta_log_std, beta)
 
 
 class Plan(NamedTuple):

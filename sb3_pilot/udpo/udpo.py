@@ -128,6 +128,9 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
     :param use_sde: must be False: the action comes from the inverse dynamics (accepted for SAC's signature)
     :param planner_coef: ``lambda``, weight of the planner's negative log-likelihood of ``s'_target``
         (paper default 1e-2; 1e-3 here, measured: see above)
+    :param planner_nll_beta: ``beta`` of the likelihood term as a beta-NLL (Seitzer et al., ICLR 2022): each state
+        dimension's negative log-likelihood weighted by ``sigma_h^(2 beta)`` (held fixed). 0 (default) is the paper's
+        term, whose pull on the plan's mean grows as ``1 / sigma_h^2``; 1 makes it a squared error on the mean
     :param plan_target: what the planner's likelihood term fits: ``"policy"``, the next state of the policy's own
         action predicted by a learned forward dynamics model (immediate landmarks), or ``"buffer"``, the real next
         state of buffer transitions (the paper's implementation)
@@ -180,6 +183,7 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         target_entropy: str | float = "auto",
         use_sde: bool = False,
         planner_coef: float = 1e-3,
+        planner_nll_beta: float = 0.0,
         plan_target: str = "buffer",
         entropy_term: str = "inverse_dynamics",
         inverse_dynamics_interval: int = 1500,
@@ -197,6 +201,7 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         if use_sde:
             raise ValueError(NO_SDE)
         check_number("planner_coef (lambda)", planner_coef, minimum=0)
+        check_number("planner_nll_beta", planner_nll_beta, minimum=0, maximum=1)
         if plan_target not in PLAN_TARGETS:
             raise ValueError(f"plan_target must be one of {PLAN_TARGETS}, got {plan_target!r}.")
         if entropy_term not in ENTROPY_TERMS:
@@ -247,6 +252,7 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         self.target_update_interval = target_update_interval
         self.ent_coef_optimizer: th.optim.Adam | None = None
         self.planner_coef = planner_coef
+        self.planner_nll_beta = planner_nll_beta
         self.plan_target = plan_target
         self.entropy_term = entropy_term
         self.inverse_dynamics_interval = inverse_dynamics_interval
@@ -372,8 +378,13 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
                 # plan_target="buffer": the buffer's real transition s -> s' (the behaviour policies' transitions)
                 target_next_state = real_next_state
             planner_nll = -plan.distribution.log_prob(target_next_state).mean()
+            planner_fit = planner_nll
+            if self.planner_nll_beta:
+                # beta-NLL: each state dimension's term weighted by sigma_h^(2 beta), so that dimensions the planner
+                # predicts almost exactly (sigma_h -> 0) do not swamp the DePG gradient with a 1 / sigma_h^2 pull
+                planner_fit = plan.distribution.beta_nll(target_next_state, self.planner_nll_beta).mean()
             # Planner loss: the final planner gradient of section 3.1, DePG + lambda * likelihood term
-            planner_loss = actor_loss + self.planner_coef * planner_nll
+            planner_loss = actor_loss + self.planner_coef * planner_fit
             losses.add("actor_loss", actor_loss)
             losses.add("planner_nll", planner_nll)
             losses.add("planner_loss", planner_loss)
