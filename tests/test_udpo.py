@@ -17,6 +17,7 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.monitor import Monitor
 
 from sb3_pilot import UDPO
+from sb3_pilot.common.distributions import beta_gaussian_nll, gaussian_log_prob
 from sb3_pilot.udpo.policies import InverseDynamics
 
 FAST_KWARGS = dict(
@@ -94,18 +95,40 @@ def test_train_refits_inverse_dynamics_every_interval(filled_model: UDPO) -> Non
     assert all(changed(before, model.inverse_dynamics).values())
 
 
-def test_planner_coef_enters_planner_gradient() -> None:
+@pytest.mark.parametrize(
+    "settings",
+    [
+        ({"planner_coef": 0.0}, {"planner_coef": 1.0}),
+        ({"planner_coef": 1.0, "planner_nll_beta": 0.0}, {"planner_coef": 1.0, "planner_nll_beta": 1.0}),
+    ],
+)
+def test_likelihood_term_settings_enter_planner_gradient(settings: tuple[dict, dict]) -> None:
     planners = []
-    for planner_coef in (0.0, 1.0):
-        model = UDPO(
-            "MultiInputPolicy", PointGoalEnv(), seed=3, **{**FAST_KWARGS, "learning_starts": 10_000}, planner_coef=planner_coef
-        )
+    for setting in settings:
+        model = UDPO("MultiInputPolicy", PointGoalEnv(), seed=3, **{**FAST_KWARGS, "learning_starts": 10_000}, **setting)
         model.learn(200)
         model._n_updates = 1
         th.manual_seed(0)
         model.train(gradient_steps=1, batch_size=64)
         planners.append(snapshot(model.state_planner))
     assert any(not th.equal(planners[0][name], planners[1][name]) for name in planners[0])
+
+
+@pytest.mark.parametrize("beta", [0.0, 0.5, 1.0])
+def test_beta_nll_pulls_the_mean_as_sigma_to_the_2_beta_minus_2(beta: float) -> None:
+    """
+    The likelihood term as a beta-NLL: beta 0 is ``-log h``, whose pull on the mean grows as ``1 / sigma^2`` (a state
+    dimension the planner predicts almost exactly swamps the others); beta 1 pulls as a squared error.
+    """
+    value = th.randn(8, 5)
+    mean = th.randn(8, 5, requires_grad=True)
+    log_std = th.linspace(-6.0, 1.0, 5).expand(8, 5).requires_grad_(True)
+    nll = beta_gaussian_nll(value, mean, log_std, beta)
+    if beta == 0.0:
+        assert th.allclose(nll, -gaussian_log_prob(value, mean, log_std))
+    (mean_grad,) = th.autograd.grad(nll.sum(), mean)
+    expected = (mean - value) * th.exp(2 * (beta - 1) * log_std)
+    assert th.allclose(mean_grad, expected.detach(), rtol=1e-4, atol=1e-6)
 
 
 @pytest.fixture(scope="module")
@@ -305,6 +328,7 @@ class DiscretePointEnv(PointGoalEnv):
         (NoAchievedGoalEnv, {"replay_buffer_class": HerReplayBuffer}, "achieved_goal"),
         (DiscretePointEnv, {}, "continuous"),
         (PointGoalEnv, {"planner_coef": -0.1}, "planner_coef"),
+        (PointGoalEnv, {"planner_nll_beta": 1.5}, "planner_nll_beta must be <= 1"),
         (PointGoalEnv, {"plan_target": "real"}, "plan_target"),
         (PointGoalEnv, {"entropy_term": "log_i"}, "entropy_term must be one of"),
         (PointGoalEnv, {"inverse_dynamics_interval": 0}, "inverse_dynamics_interval"),
