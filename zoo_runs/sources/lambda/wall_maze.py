@@ -42,6 +42,7 @@ DEFAULTS: dict[str, Any] = {
     "entropy_term": "inverse_dynamics",
     "ent_coef": "auto",
     "planner_learning_rate": None,
+    "planner_nll_beta": 0.0,
     "noise_std": None,
 }
 
@@ -104,13 +105,14 @@ def main() -> None:
     parser.add_argument("--entropy-term", choices=["inverse_dynamics", "linearised"], default="inverse_dynamics")
     parser.add_argument("--ent-coef", default="auto", help="UDPO's ent_coef ('auto' or a number)")
     parser.add_argument("--planner-lr", type=float, default=None, help="UDPO's planner_learning_rate (default: its lr)")
+    parser.add_argument("--nll-beta", type=float, default=0.0, help="UDPO's planner_nll_beta (beta-NLL)")
     parser.add_argument("--noise-std", type=float, default=None, help="UDPO's Gaussian action noise (default: none)")
     parser.add_argument("--id-interval", type=int, default=DEFAULTS["inverse_dynamics_interval"], help="UDPO's Delta")
     parser.add_argument("--id-steps", type=int, default=DEFAULTS["inverse_dynamics_gradient_steps"], help="I's steps a refit")
     args = parser.parse_args()
     ent_coef = args.ent_coef if args.ent_coef.startswith("auto") else float(args.ent_coef)
     options = {"plan_target": args.plan_target, "ent_coef": ent_coef, "noise_std": args.noise_std}
-    options.update(planner_learning_rate=args.planner_lr, entropy_term=args.entropy_term)
+    options.update(planner_learning_rate=args.planner_lr, entropy_term=args.entropy_term, planner_nll_beta=args.nll_beta)
     options.update(inverse_dynamics_interval=args.id_interval, inverse_dynamics_gradient_steps=args.id_steps)
     runs = [(algo, coef) for algo in args.algo for coef in (args.coefs if algo == "udpo" else [0.0])]
     # seed-major order: a run cut short leaves every method with about the same seeds; lines in order of finishing
