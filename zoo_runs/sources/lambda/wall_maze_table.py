@@ -29,6 +29,7 @@ def method_name(row: dict) -> str:
         "plan_target",
         "ent_coef",
         "planner_learning_rate",
+        "planner_nll_beta",
         "noise_std",
         "inverse_dynamics_interval",
         "inverse_dynamics_gradient_steps",
