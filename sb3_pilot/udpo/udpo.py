@@ -90,6 +90,12 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
       13 of 16 seeds against 2-4 (area +0.20 [0.02, 0.33]), but on FetchReach, PointLocomotion and Reacher it reaches
       90% later than the default (1.2x, 1.4x, 1.3x its steps) and does not learn FetchPush either; its gradient step
       costs 1.5-1.7x. So the default stays DePO's; ``"linearised"`` is for tasks where a detour must be found.
+    - The likelihood term pulls the plan's mean by ``(mu - s'_target) / sigma_h^2`` per state dimension, so dimensions
+      the planner predicts almost exactly (on FetchPush the object, the fingers) outweigh the actor loss's gradient
+      (17-270x at ``lambda = 1e-3``). ``planner_nll_beta`` (opt-in) weights each dimension's term by
+      ``sigma_h^(2 beta)`` (beta-NLL). Measured at 0.5 (``zoo_runs/sources/lambda``): 90% success on the walled maze on
+      11 of 16 seeds against 4 (a hint), FetchReach no slower with plans nearer the real next states, PointLocomotion
+      undecided at 3 seeds; not the default.
 
     The planner state ``s`` is ``observation`` concatenated with ``achieved_goal`` for Dict goal observations, so the
     goal mapping ``phi`` is the achieved-goal slice of the state (``policy.goal_slice``); with a Box observation

@@ -6,6 +6,8 @@ SAC + HER's deterministic policy (30 episodes) and each checkpoint's sampled pol
 
 - exploration: the share of sampled episodes in which the object moves (> 2 cm), the mean smallest gripper-object
   distance, and the spread of 64 actions sampled at one state;
+- actor against critic (SAC + HER's and UDPO's): on the checkpoint's own sampled states, how far the value of its
+  deterministic action lies below its critic's best value over actions (Adam);
 - critic (UDPO's only): on SAC + HER's states, the share where UDPO's critic values SAC + HER's action above UDPO's own,
   and the critic's best value found by Adam over actions and over plans ``s'`` through the fixed ``I``: equal values say
   that ``I`` lets the planner reach whatever the critic prefers;
@@ -77,10 +79,25 @@ def as_tensors(normalize: VecNormalize, raw: list[dict[str, np.ndarray]]) -> dic
     return {key: th.as_tensor(value, dtype=th.float32) for key, value in batch.items()}
 
 
-def exploration_line(name: str, data: dict) -> str:
+def exploration_line(name: str, model: BaseAlgorithm, normalize: VecNormalize) -> str:
+    """Exploration of the sampled policy, and the gap between the deterministic actor and its critic's best action."""
+    data = rollouts(model, normalize, 40, 2000, deterministic=False)
+    obs = as_tensors(normalize, data["obs"])
+    model.policy.set_training_mode(False)
+    critic = model.policy.critic
+
+    def q_value(actions: th.Tensor) -> th.Tensor:
+        values = critic.q_values(obs, actions) if isinstance(model, UDPO) else th.stack(critic(obs, actions))
+        return values.amin(dim=0).squeeze(-1)
+
+    with th.no_grad():
+        actions = th.as_tensor(model.predict({key: value.numpy() for key, value in obs.items()}, deterministic=True)[0])
+        actor_value = q_value(actions)
+    best = best_value(lambda pre: q_value(th.tanh(pre)), th.atanh(actions.clamp(-0.999, 0.999)))
     return (
         f"{name}: sampled episodes moving the object {np.mean(data['moved']):.2f}, closest gripper-object distance "
-        f"{np.mean(data['closest']):.3f} m, action std at a state {np.mean(data['spread'], 0).round(2)}"
+        f"{np.mean(data['closest']):.3f} m, action std at a state {np.mean(data['spread'], 0).round(2)}; "
+        f"on its own states Q(actor) {actor_value.mean():.3f}, critic's best {best.mean():.3f}"
     )
 
 
@@ -100,7 +117,7 @@ def diagnose_udpo(spec: str, expert: dict) -> None:
     model, normalize = load(spec, UDPO)
     policy = model.policy
     policy.set_training_mode(False)
-    print(exploration_line(f"UDPO {spec}", rollouts(model, normalize, 40, 2000, deterministic=False)))
+    print(exploration_line(f"UDPO {spec}", model, normalize))
 
     obs, next_obs = as_tensors(normalize, expert["obs"]), as_tensors(normalize, expert["next_obs"])
     expert_actions = th.as_tensor(np.stack(expert["actions"]), dtype=th.float32)
@@ -169,7 +186,7 @@ def main() -> None:
     expert = rollouts(*load(args.expert, LeanSAC), 30, 1000, deterministic=True)
     print(f"expert {args.expert}: deterministic episodes moving the object {np.mean(expert['moved']):.2f}")
     for spec in args.sac:
-        print(exploration_line(f"SAC + HER {spec}", rollouts(*load(spec, LeanSAC), 40, 2000, deterministic=False)))
+        print(exploration_line(f"SAC + HER {spec}", *load(spec, LeanSAC)))
     for spec in args.udpo:
         diagnose_udpo(spec, expert)
 

@@ -46,6 +46,7 @@ VARIANTS = {
     "linearised": 'entropy_term "linearised"',
     "idlr1e-3": "inverse_dynamics_learning_rate 1e-3",
     "plr1e-3": "planner_learning_rate 1e-3",
+    "beta0.5": "planner_nll_beta 0.5",
 }
 
 
