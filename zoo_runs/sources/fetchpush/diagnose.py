@@ -15,6 +15,8 @@ SAC + HER's deterministic policy (30 episodes) and each checkpoint's sampled pol
 - planner gradient: per state dimension, the planner's std and the mean ``|gradient|`` on the plan's mean of the actor
   loss (entropy term included) and of ``lambda`` times the likelihood term (the run's ``planner_nll_beta``).
 
+``--sac`` and ``--udpo-exploration`` checkpoints get the exploration line only (no ``--expert`` needed).
+
     F=/tmp/fp3/sac/lean_sac/Pilot-FetchPush-v0_1
     python zoo_runs/sources/fetchpush/diagnose.py --sac $F:100000 $F:200000 --expert $F:200000 \
         --udpo /tmp/fpL/udpo/udpo/Pilot-FetchPush-v0_1:100000 /tmp/fpL/udpo/udpo/Pilot-FetchPush-v0_1:200000
@@ -178,15 +180,21 @@ def diagnose_udpo(spec: str, expert: dict) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--expert", required=True, help="SAC + HER checkpoint FOLDER:STEP whose policy pushes")
+    parser.add_argument("--expert", help="SAC + HER checkpoint FOLDER:STEP whose policy pushes (needed with --udpo)")
     parser.add_argument("--sac", nargs="*", default=[], help="SAC + HER checkpoints FOLDER:STEP (exploration only)")
-    parser.add_argument("--udpo", nargs="+", required=True, help="UDPO checkpoints FOLDER:STEP")
+    parser.add_argument("--udpo", nargs="*", default=[], help="UDPO checkpoints FOLDER:STEP")
+    parser.add_argument("--udpo-exploration", nargs="*", default=[], help="UDPO checkpoints FOLDER:STEP (exploration only)")
     args = parser.parse_args()
+    if args.udpo and not args.expert:
+        parser.error("--udpo compares UDPO's critic with an expert's actions: give --expert")
     th.set_num_threads(1)
-    expert = rollouts(*load(args.expert, LeanSAC), 30, 1000, deterministic=True)
-    print(f"expert {args.expert}: deterministic episodes moving the object {np.mean(expert['moved']):.2f}")
+    if args.udpo:
+        expert = rollouts(*load(args.expert, LeanSAC), 30, 1000, deterministic=True)
+        print(f"expert {args.expert}: deterministic episodes moving the object {np.mean(expert['moved']):.2f}")
     for spec in args.sac:
-        print(exploration_line(f"SAC + HER {spec}", *load(spec, LeanSAC)))
+        print(exploration_line(f"SAC + HER {spec}", *load(spec, LeanSAC)), flush=True)
+    for spec in args.udpo_exploration:
+        print(exploration_line(f"UDPO {spec}", *load(spec, UDPO)), flush=True)
     for spec in args.udpo:
         diagnose_udpo(spec, expert)
 
