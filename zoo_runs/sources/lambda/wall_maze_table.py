@@ -30,6 +30,7 @@ def method_name(row: dict) -> str:
         "ent_coef",
         "planner_learning_rate",
         "planner_nll_beta",
+        "likelihood_goals",
         "noise_std",
         "inverse_dynamics_interval",
         "inverse_dynamics_gradient_steps",
