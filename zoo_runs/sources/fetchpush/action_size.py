@@ -17,33 +17,15 @@ final model); SAC + HER's folders hold ``lean_sac`` in their path.
 import argparse
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 import torch as th
+from diagnose import load  # this folder's: a checkpoint and its VecNormalize statistics
 from stable_baselines3.common.save_util import load_from_pkl
-from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-import sb3_pilot  # noqa: F401  (registers Pilot/*)
 from sb3_pilot.sac import LeanSAC
 from sb3_pilot.udpo import UDPO
 
-ENV_ID = "Pilot/FetchPush-v0"
 PLANS = 8
-
-
-def load(spec: str) -> tuple[LeanSAC | UDPO, VecNormalize]:
-    """A checkpoint ``FOLDER:STEP`` or a run's final model ``FOLDER``, and its observation normalisation."""
-    folder, _, step = spec.partition(":")
-    if step:
-        model_path = Path(folder) / f"rl_model_{step}_steps.zip"
-        statistics = Path(folder) / f"rl_model_vecnormalize_{step}_steps.pkl"
-    else:
-        model_path = Path(folder) / "Pilot-FetchPush-v0.zip"
-        statistics = Path(folder) / "Pilot-FetchPush-v0" / "vecnormalize.pkl"
-    normalize = VecNormalize.load(str(statistics), DummyVecEnv([lambda: gym.make(ENV_ID)]))
-    normalize.training = False
-    algo = LeanSAC if "lean_sac" in folder else UDPO
-    return algo.load(model_path, env=normalize, device="cpu"), normalize
 
 
 def plan_noise_spread(model: UDPO, obs: dict[str, th.Tensor], dims: slice) -> np.ndarray:
@@ -69,7 +51,7 @@ def main() -> None:
     raw = {key: value[rows, 0] for key, value in buffer.observations.items()}
     print(f"# {len(rows)} states: every 20th of steps 20k-60k of {args.states}")
     for spec in args.checkpoints:
-        model, normalize = load(spec)
+        model, normalize = load(spec, LeanSAC if "lean_sac" in spec else UDPO)
         obs = {key: th.as_tensor(value, dtype=th.float32) for key, value in normalize.normalize_obs(raw).items()}
         with th.no_grad():
             actions = model.policy._predict(obs, deterministic=True)[:, :3]

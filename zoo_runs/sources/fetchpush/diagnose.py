@@ -45,13 +45,20 @@ STATE_NAMES = [
 
 
 def load(spec: str, algo: type[BaseAlgorithm]) -> tuple[BaseAlgorithm, VecNormalize]:
-    """A checkpoint ``FOLDER:STEP`` and its observation normalisation."""
-    folder, step = spec.rsplit(":", 1)
-    normalize = VecNormalize.load(
-        str(Path(folder) / f"rl_model_vecnormalize_{step}_steps.pkl"), DummyVecEnv([lambda: gym.make(ENV_ID)])
-    )
+    """
+    A checkpoint ``FOLDER:STEP`` (``--save-freq``'s ``rl_model_<STEP>_steps.zip``) or a run's final model ``FOLDER``,
+    and its observation normalisation.
+    """
+    folder, _, step = spec.partition(":")
+    if step:
+        model_path = Path(folder) / f"rl_model_{step}_steps.zip"
+        statistics = Path(folder) / f"rl_model_vecnormalize_{step}_steps.pkl"
+    else:
+        model_path = Path(folder) / f"{ENV_ID.replace('/', '-')}.zip"
+        statistics = Path(folder) / ENV_ID.replace("/", "-") / "vecnormalize.pkl"
+    normalize = VecNormalize.load(str(statistics), DummyVecEnv([lambda: gym.make(ENV_ID)]))
     normalize.training = False
-    return algo.load(Path(folder) / f"rl_model_{step}_steps.zip", env=normalize, device="cpu"), normalize
+    return algo.load(model_path, env=normalize, device="cpu"), normalize
 
 
 def rollouts(model: BaseAlgorithm, normalize: VecNormalize, episodes: int, seed: int, deterministic: bool) -> dict:
