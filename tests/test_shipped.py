@@ -1,6 +1,6 @@
 """
-The files shipped for Zero-shot Ant-Maze load on a fresh clone and guide the Ant; the shipped Fetch-Reach source reaches
-its goals; ``--reuse-shipped`` evaluates them.
+The files shipped for Zero-shot Ant-Maze load on a fresh clone and guide the Ant; the shipped Fetch-Reach and Fetch-Push
+sources reach their goals; ``--reuse-shipped`` evaluates them.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from sb3_pilot.envs import register_envs
 from sb3_pilot.experiments.ant_controller import load_controller
 from sb3_pilot.experiments.challenges import REUSE_SHIPPED, Shipped
 from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
-from sb3_pilot.experiments.challenges.definitions import FETCH_REACH_SOURCE, SOURCES_DIR
+from sb3_pilot.experiments.challenges.definitions import FETCH_PUSH_SOURCE, FETCH_REACH_SOURCE, SOURCES_DIR
 from sb3_pilot.experiments.challenges.stages import config_hash, load_zoo_model, vecnormalize_path
 
 register_envs()
@@ -98,9 +98,10 @@ def test_reuse_shipped_only_where_shipped(tmp_path: Path):
         challenges_main(["vec-to-image", "--reuse-shipped", "--root", str(tmp_path)])
 
 
-def test_shipped_fetch_reach_source_reaches():
-    """The shipped UDPO loads as the zoo saved it (its VecNormalize beside it) and reaches its goals on a fresh clone."""
-    model, vec_normalize = load_zoo_model(FETCH_REACH_SOURCE)  # on a DummyVecEnv of Pilot/FetchReach-v0
+@pytest.mark.parametrize("source", [FETCH_REACH_SOURCE, FETCH_PUSH_SOURCE], ids=lambda path: path.stem)
+def test_shipped_source_reaches(source: Path):
+    """A shipped UDPO loads as the zoo saved it (its VecNormalize beside it) and reaches its goals on a fresh clone."""
+    model, vec_normalize = load_zoo_model(source)  # on a DummyVecEnv of its task
     assert model.__class__.__name__ == "UDPO" and vec_normalize is not None and not vec_normalize.training
     successes = []
     vec_normalize.seed(0)
@@ -112,13 +113,19 @@ def test_shipped_fetch_reach_source_reaches():
     assert np.mean(successes) >= 0.9
 
 
-def test_high_dim_action_reuse_shipped_smoke(tmp_path: Path):
-    """High-Dim-Action from the shipped source: no source stage runs, the target reuses the shipped state planner."""
-    challenges_main(["high-dim-action", "--reuse-shipped", "--budget", "smoke", "--root", str(tmp_path)])
-    summary = json.loads((tmp_path / "high-dim-action-shipped" / "summary.json").read_text())
+@pytest.mark.parametrize(
+    "challenge, folder, net_arch",
+    [("high-dim-action", "fetchreach_seed0", "[64, 64]"), ("high-dim-action-push", "fetchpush_seed0", "[256, 256]")],
+)
+def test_high_dim_action_reuse_shipped_smoke(tmp_path: Path, challenge: str, folder: str, net_arch: str):
+    """High-Dim-Action from a shipped source: no source stage runs, the target reuses the shipped state planner at the
+    source's network size (the smoke budget's own is 32x32)."""
+    challenges_main([challenge, "--reuse-shipped", "--budget", "smoke", "--root", str(tmp_path)])
+    run_dir = tmp_path / REUSE_SHIPPED[challenge].name
+    summary = json.loads((run_dir / "summary.json").read_text())
     assert set(summary["stages"]) == {"seed_0/source", "seed_0/pilot", "seed_0/her"}
-    shipped = "<repo>/zoo_runs/sources/shipped/fetchreach_seed0/"
+    shipped = f"<repo>/zoo_runs/sources/shipped/{folder}/"
     assert summary["stages"]["seed_0/source"]["config"]["shipped"].startswith(shipped)
     command = " ".join(summary["stages"]["seed_0/pilot"]["config"]["zoo"])
-    assert "StatePlannerTransferCallback" in command and shipped in command and "[64, 64]" in command
-    assert not list((tmp_path / "high-dim-action-shipped" / "models" / "seed_0" / "source").rglob("*.zip"))  # untrained
+    assert "StatePlannerTransferCallback" in command and shipped in command and net_arch in command
+    assert not list((run_dir / "models" / "seed_0" / "source").rglob("*.zip"))  # untrained

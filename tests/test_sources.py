@@ -11,7 +11,7 @@ from sb3_pilot.experiments.benchmarks.sources import (
     table,
     verdict,
 )
-from sb3_pilot.experiments.challenges import stage_graph
+from sb3_pilot.experiments.challenges import CHALLENGES, stage_graph
 from sb3_pilot.experiments.challenges.definitions import BUDGETS, RL_ZOO_FETCH_NORMALIZED
 from sb3_pilot.experiments.challenges.stages import StageContext
 
@@ -30,6 +30,20 @@ def test_reacher_recipe_is_the_fetch_one_with_one_env() -> None:
     fast = challenge.fast_hyperparams
     assert fast["*"] == {**RL_ZOO_FETCH_NORMALIZED["*"], "n_envs": 1} and fast["udpo"] == RL_ZOO_FETCH_NORMALIZED["udpo"]
     assert challenge.steps["cpu"] == {"udpo": 40_000, "her": 40_000}
+
+
+def test_fetch_push_recipe_reaches_the_zoo(tmp_path: Path) -> None:
+    """FetchPush at the cpu budget: one env, a 50k-step warm-up and target entropy 0 for both methods, UDPO with the
+    linearised entropy term and lambda 1e-4, 150k steps; the same recipe as the High-Dim Push challenge."""
+    challenge = source_challenge("Pilot/FetchPush-v0")
+    assert challenge.fast_hyperparams is CHALLENGES["high-dim-action-push"].fast_hyperparams
+    assert challenge.steps["cpu"] == {"udpo": 150_000, "her": 150_000}
+    ctx = StageContext(tmp_path, 0, BUDGETS["cpu"], challenge.steps["cpu"], challenge.fast_hyperparams, {})
+    udpo, her = (stage.zoo_args(ctx, tmp_path / stage.name) for stage in challenge.stages)
+    for args in (udpo, her):
+        params = args[args.index("-params") + 1 :]
+        assert {"n_envs:1", "learning_starts:50000", "target_entropy:0.0", "tau:0.05"} <= set(params)
+    assert {"planner_coef:0.0001", "entropy_term:'linearised'"} <= set(udpo) and "planner_coef:0.0001" not in her
 
 
 def test_maze2d_trains_on_uniform_goals_and_is_evaluated_on_the_far_goal(tmp_path: Path) -> None:

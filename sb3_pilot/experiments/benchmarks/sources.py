@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from sb3_pilot.experiments.challenges import Challenge, ZooTrain, run_challenge
-from sb3_pilot.experiments.challenges.definitions import RL_ZOO_FETCH_NORMALIZED
+from sb3_pilot.experiments.challenges.definitions import FETCH_PUSH_FAST, RL_ZOO_FETCH_NORMALIZED
 from sb3_pilot.experiments.statistics import MIN_SEEDS, REPS, compare, method_statistics
 
 SOURCE_TASKS = ("Pilot/FetchReach-v0", "Pilot/FetchPush-v0", "Pilot/Reacher-v0", "Pilot/Maze2D-v0", "Pilot/PointLocomotion-v0")
@@ -42,24 +42,12 @@ EVAL_ENV_KWARGS: dict[str, dict[str, Any]] = {"Pilot/Maze2D-v0": {"goal_distribu
 #: RL-Zoo's FetchReach settings with VecNormalize on the Fetch tasks (as the Fetch challenges) and on Reacher, there with
 #: one env (one gradient step per env step). Reacher's recipe and budget were sized from SAC + HER's probes alone,
 #: before any UDPO run (zoo_runs/sources/reacher): the preset's 4 envs (one gradient step per 4 env steps), gamma 0.99
-#: and lr 3e-4 reached 0.00-0.20 success in 50k steps. FetchPush's, from one SAC + HER run alone, before any UDPO run
-#: on it (zoo_runs/sources/fetchpush): also one env, RL-Zoo's FetchPush tau 0.05, 256x256 networks and a target
-#: entropy of 0 instead of -dim(action) (with -4 its entropy coefficient collapsed; those runs, 2 envs to 150k and
-#: 1 env to 65k, stayed at chance), reached 90% at 200k steps; with a 50k-step random warm-up (learning_starts) instead
-#: of 1000 it reached 85% at 100k and 95% at 125k (one seed each), hence the warm-up and 150k.
+#: and lr 3e-4 reached 0.00-0.20 success in 50k steps. FetchPush's is :data:`FETCH_PUSH_FAST` (the High-Dim Push
+#: challenge's too): one env, tau 0.05, 256x256 networks, a target entropy of 0 and a 50k-step random warm-up, sized
+#: from SAC + HER's runs (zoo_runs/sources/fetchpush), UDPO with the linearised entropy term and lambda 1e-4.
 FAST_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
     "Pilot/FetchReach-v0": RL_ZOO_FETCH_NORMALIZED,
-    "Pilot/FetchPush-v0": {
-        **RL_ZOO_FETCH_NORMALIZED,
-        "*": {
-            **RL_ZOO_FETCH_NORMALIZED["*"],
-            "n_envs": 1,
-            "tau": 0.05,
-            "target_entropy": 0.0,
-            "learning_starts": 50_000,
-            "policy_kwargs": {"net_arch": [256, 256]},
-        },
-    },
+    "Pilot/FetchPush-v0": FETCH_PUSH_FAST,
     "Pilot/Reacher-v0": {**RL_ZOO_FETCH_NORMALIZED, "*": {**RL_ZOO_FETCH_NORMALIZED["*"], "n_envs": 1}},
 }
 #: Env steps at the cpu budget where not the YAML's ``n_timesteps``, per task.

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -89,12 +90,24 @@ RL_ZOO_FETCH: dict[str, dict[str, Any]] = {
 #: stage of the High-Dim-Action challenge (source, transfer target and SAC + HER baseline alike): the zoo's
 #: state-planner transfer hook carries the source's statistics into the target, frozen with the planner.
 RL_ZOO_FETCH_NORMALIZED: dict[str, dict[str, Any]] = {**RL_ZOO_FETCH, "*": {**RL_ZOO_FETCH["*"], "normalize": True}}
-#: High-Dim-Action on Push: :data:`RL_ZOO_FETCH_NORMALIZED` with SB3's default 256x256 networks (RL-Zoo's own
-#: FetchPush settings use 512x512x512; 64x64 is its FetchReach's) and its 1000-step warm-up (8 envs x 50 steps
-#: end their first episodes at 400 steps).
-HIGH_DIM_PUSH_FAST: dict[str, dict[str, Any]] = {
+#: Fetch-Push's recipe at the smoke and cpu budgets, every method alike (issue 21, zoo_runs/sources/fetchpush):
+#: :data:`RL_ZOO_FETCH_NORMALIZED` with one env (one gradient step per env step), RL-Zoo's FetchPush tau 0.05, SB3's
+#: 256x256 networks (RL-Zoo's FetchPush uses 512x512x512), a target entropy of 0 instead of -dim(action) (with -4 SAC
+#: + HER's temperature collapsed and it stayed at chance) and a 50k-step random warm-up (random actions move the object
+#: in 18% of episodes, more than a young policy does). SAC + HER reached 90% at 100-150k steps with it, 200k with 1000
+#: warm-up steps. UDPO takes the linearised entropy term and lambda 1e-4: at lambda 1e-3 its deterministic action
+#: shrank to a third of SAC + HER's and it stayed at chance to 175k steps, at 1e-4 it reached 90% at 125k.
+FETCH_PUSH_FAST: dict[str, dict[str, Any]] = {
     **RL_ZOO_FETCH_NORMALIZED,
-    "*": {**RL_ZOO_FETCH_NORMALIZED["*"], "policy_kwargs": {"net_arch": [256, 256]}},
+    "*": {
+        **RL_ZOO_FETCH_NORMALIZED["*"],
+        "n_envs": 1,
+        "tau": 0.05,
+        "target_entropy": 0.0,
+        "learning_starts": 50_000,
+        "policy_kwargs": {"net_arch": [256, 256]},
+    },
+    "udpo": {**RL_ZOO_FETCH_NORMALIZED["udpo"], "planner_coef": 1e-4, "entropy_term": "linearised"},
 }
 #: Encoder of the pixel-only agents at the smoke and cpu budgets, both methods alike (:class:`PixelGoalExtractor`'s
 #: ``encoder``): chosen by success per wall-clock minute at the cpu budget (zoo_runs/image-encoder/README.md).
@@ -266,10 +279,18 @@ MAZE_CAR_STEPS = {
 }
 
 HIGH_DIM_ACTION_STAGES = _high_dim_stages("Pilot/FetchReach-v0", "Pilot/FetchReachHighDim-v0")
+HIGH_DIM_PUSH_STAGES = _high_dim_stages("Pilot/FetchPush-v0", "Pilot/FetchPushHighDim-v0")
 HIGH_DIM_ACTION_STEPS = {
     "smoke": {"source": 400, "pilot": 300, "her": 300},
     "demo": {"source": 8000, "pilot": 4000, "her": 4000},
     "cpu": {"source": 8000, "pilot": 8000, "her": 8000},
+}
+
+#: High-Dim-Action on Push: steps per stage and budget (cpu: where SAC + HER and UDPO learnt Fetch-Push with
+#: :data:`FETCH_PUSH_FAST`).
+HIGH_DIM_PUSH_STEPS: dict[str, dict[str, int]] = {
+    "smoke": {"source": 1200, "pilot": 1200, "her": 1200},
+    "cpu": {"source": 150_000, "pilot": 150_000, "her": 150_000},
 }
 
 CHALLENGES: dict[str, Challenge] = {
@@ -287,12 +308,9 @@ CHALLENGES: dict[str, Challenge] = {
             "high-dim-action-push",
             "UDPO on Fetch-Push -> its state planner, frozen, in a UDPO on Fetch-Push-High-Dim, vs SAC+HER",
             "Pilot/FetchPushHighDim-v0",
-            _high_dim_stages("Pilot/FetchPush-v0", "Pilot/FetchPushHighDim-v0"),
-            steps={
-                "smoke": {"source": 1200, "pilot": 1200, "her": 1200},
-                "cpu": {"source": 100_000, "pilot": 100_000, "her": 100_000},
-            },
-            fast_hyperparams=HIGH_DIM_PUSH_FAST,
+            HIGH_DIM_PUSH_STAGES,
+            steps=HIGH_DIM_PUSH_STEPS,
+            fast_hyperparams=FETCH_PUSH_FAST,
         ),
         Challenge(
             "vec-to-image",
@@ -397,15 +415,22 @@ SHIPPED_DIR = REPO_DIR / "zoo_runs" / "zero-shot-ant-maze" / "controller"
 #: The Maze2D goal planner Maze-Car's ``--reuse-shipped`` run shares between its seeds.
 MAZE_CAR_PLANNER = SHIPPED_DIR / "maze2d_planner.pt"
 #: The trained sources shipped in the repository, laid out as the zoo saves a run (``zoo_runs/sources/shipped/README.md``
-#: says how each was made): UDPO on Fetch-Reach (the sources benchmark's recipe, seed 0), with its ``VecNormalize``.
+#: says how each was made), each with its ``VecNormalize``: UDPO on Fetch-Reach (the sources benchmark's recipe, seed 0).
 SOURCES_DIR = REPO_DIR / "zoo_runs" / "sources" / "shipped"
 FETCH_REACH_SOURCE = SOURCES_DIR / "fetchreach_seed0" / "udpo" / "Pilot-FetchReach-v0_1" / "Pilot-FetchReach-v0.zip"
+#: UDPO on Fetch-Push with :data:`FETCH_PUSH_FAST` (lambda 1e-4, 50k warm-up steps), seed 0, its 150k-step checkpoint.
+FETCH_PUSH_SOURCE = SOURCES_DIR / "fetchpush_seed0" / "udpo" / "Pilot-FetchPush-v0_1" / "Pilot-FetchPush-v0.zip"
 
 
-def _shipped_planner_transfer(outputs: dict[str, Path]) -> dict[str, Any]:
-    """:func:`_state_planner_transfer` of the shipped Fetch-Reach source: the target's networks are its (64x64) size."""
+def _shipped_planner_transfer(outputs: dict[str, Path], net_arch: list[int]) -> dict[str, Any]:
+    """
+    :func:`_state_planner_transfer` of a shipped source: the target's networks are the source's size at every budget.
+
+    :param outputs: the finished stages' outputs
+    :param net_arch: the shipped source's hidden layers
+    """
     transfer = _state_planner_transfer(outputs)
-    return {**transfer, "policy_kwargs": {**transfer["policy_kwargs"], "net_arch": [64, 64]}}
+    return {**transfer, "policy_kwargs": {**transfer["policy_kwargs"], "net_arch": net_arch}}
 
 
 #: ``--reuse-shipped``: challenges that evaluate the shipped models instead of training them, by challenge name.
@@ -441,11 +466,24 @@ REUSE_SHIPPED: dict[str, Challenge] = {
         "Pilot/FetchReachHighDim-v0",
         (
             Shipped("source", FETCH_REACH_SOURCE),
-            dataclasses.replace(HIGH_DIM_ACTION_STAGES[1], params=_shipped_planner_transfer),
+            dataclasses.replace(HIGH_DIM_ACTION_STAGES[1], params=partial(_shipped_planner_transfer, net_arch=[64, 64])),
             *HIGH_DIM_ACTION_STAGES[2:],
         ),
         steps={budget: {name: steps[name] for name in ("pilot", "her")} for budget, steps in HIGH_DIM_ACTION_STEPS.items()},
         fast_hyperparams=RL_ZOO_FETCH_NORMALIZED,
+    ),
+    # one source for every seed: the shipped Fetch-Push UDPO (256x256, this challenge's recipe)
+    "high-dim-action-push": Challenge(
+        "high-dim-action-push-shipped",
+        "the shipped Fetch-Push UDPO's state planner, frozen, in a UDPO on Fetch-Push-High-Dim, vs SAC+HER",
+        "Pilot/FetchPushHighDim-v0",
+        (
+            Shipped("source", FETCH_PUSH_SOURCE),
+            dataclasses.replace(HIGH_DIM_PUSH_STAGES[1], params=partial(_shipped_planner_transfer, net_arch=[256, 256])),
+            *HIGH_DIM_PUSH_STAGES[2:],
+        ),
+        steps={budget: {name: steps[name] for name in ("pilot", "her")} for budget, steps in HIGH_DIM_PUSH_STEPS.items()},
+        fast_hyperparams=FETCH_PUSH_FAST,
     ),
     # one source for every seed: the plain Maze2D planner shipped with Zero-shot Ant-Maze (UDPO on Maze2D, uniform starts
     # and goals, 20k steps, seed 0: this challenge's source recipe at seed 0)
