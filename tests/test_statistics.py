@@ -58,6 +58,15 @@ def test_verdict_wording() -> None:
     assert verdict({"value": -0.1, "ci": [-0.3, 0.05]}, 10).startswith("no gain shown")
 
 
+def test_a_seed_stopped_early_has_not_reached() -> None:
+    """A shorter curve that never reached 90% counts as censored at its own next point, not as reached."""
+    full = {"timesteps": [10, 20, 30, 40], "success_rate": [0.0, 0.5, 0.9, 1.0]}
+    stopped = {"timesteps": [10, 20], "success_rate": [0.0, 0.5]}
+    stats = method_statistics([full, stopped], reps=REPS)
+    assert stats["steps_to_90"]["reached"] == 1 and stats["steps_to_90"]["censored_at"] == 50
+    assert stats["steps_to_50"]["reached"] == 2
+
+
 def test_method_statistics_and_pointwise_iqm() -> None:
     runs = ramps(np.array([0, 0, 0, 30_000]))  # three seeds at 90% by 8000, one never learns
     stats = method_statistics(runs, reps=REPS)

@@ -147,8 +147,9 @@ def method_statistics(runs: Sequence[dict[str, Any]], seed: int = 0, reps: int =
         values = np.array([scores[metric] for scores in per_run])
         result[metric] = _interval(values, iqm, seed, reps)
         if metric.startswith("steps_to"):
-            censored_at = max(scores["censored_at"] for scores in per_run)
-            result[metric].update(reached=int(np.sum(values < censored_at)), censored_at=censored_at)
+            # each seed against its own censoring point: a seed stopped early has not reached what it never showed
+            reached = sum(scores[metric] < scores["censored_at"] for scores in per_run)
+            result[metric].update(reached=int(reached), censored_at=max(scores["censored_at"] for scores in per_run))
     return result
 
 

@@ -1,0 +1,103 @@
+"""
+UDPO + HER (lambda 1e-4, linearised entropy term) against SAC + HER on Fetch-Push, both with the 50k-step random
+warm-up (``FETCH_PUSH_FAST``), over every seed whose files are here: the ``rliable`` IQM over seeds of the steps to 50%
+/ 90% success, its stratified-bootstrap 95% interval, and the ratio of the two methods' IQM steps to 90% with its
+interval (issue 21's rule: at most 1.1x), computed by the package's ``statistics`` and ``sources.verdict``.
+
+Two measures of the same runs:
+
+- ``evaluation``: the zoo's deterministic evaluations (20 episodes) on the 25k grid up to 150k steps, which every
+  seed has (``evaluations_<run>_seed_<s>.npz``; seeds 2+ were evaluated every 12.5k, read on the 25k grid here and on
+  their own grid in the last table). A seed that stopped before 150k has a shorter curve.
+- ``training``: the success of the sampled policy's training episodes per 10k steps from 50k (``monitor_<run>_seed_<s>.csv``,
+  the zoo's ``0.monitor.csv``; about 200 episodes per point).
+
+Run from the repository root: ``python zoo_runs/sources/fetchpush/seeds.py`` (output: ``seeds.txt``).
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from sb3_pilot.experiments.benchmarks.sources import verdict
+from sb3_pilot.experiments.statistics import compare, format_estimate, method_statistics
+
+HERE = Path(__file__).resolve().parent
+RUNS = {"UDPO+HER": "udpo_linearised_lambda1e-4_warmup50k", "SAC+HER": "sac_target_entropy0_warmup50k"}
+LAST, GRID, WINDOW, START = 150_000, 25_000, 10_000, 50_000
+
+
+def evaluation_runs(run: str, grid: int | None) -> list[dict]:
+    """Each seed's deterministic evaluations up to :data:`LAST` steps, on multiples of ``grid`` (None: all)."""
+    runs = []
+    for path in sorted(HERE.glob(f"evaluations_{run}_seed_*.npz")):
+        data = np.load(path)
+        keep = (data["timesteps"] <= LAST) & ((data["timesteps"] % grid == 0) if grid else True)
+        if grid is None and np.all(data["timesteps"] % GRID == 0):
+            continue  # a seed evaluated on the 25k grid only
+        runs.append(
+            {
+                "seed": int(path.stem.rsplit("_", 1)[1]),
+                "timesteps": data["timesteps"][keep].tolist(),
+                "success_rate": data["successes"][keep].mean(axis=1).tolist(),
+            }
+        )
+    return runs
+
+
+def training_runs(run: str) -> list[dict]:
+    """Each seed's training-episode success per :data:`WINDOW` steps from :data:`START` to :data:`LAST`."""
+    runs = []
+    for path in sorted(HERE.glob(f"monitor_{run}_seed_*.csv")):
+        rows = list(csv.reader(path.open()))[2:]
+        ends = np.cumsum([int(row[1]) for row in rows])
+        success = np.array([row[3] == "True" for row in rows], dtype=float)
+        windows = [end for end in range(START + WINDOW, LAST + 1, WINDOW) if end <= ends[-1]]
+        rates = [success[(ends > end - WINDOW) & (ends <= end)].mean() for end in windows]
+        runs.append({"seed": int(path.stem.rsplit("_", 1)[1]), "timesteps": windows, "success_rate": rates})
+    return runs
+
+
+def report(title: str, udpo: list[dict], her: list[dict]) -> str:
+    """A markdown table of both methods' statistics and the verdict with the ratio's interval."""
+    lines = [
+        f"### {title}",
+        "",
+        "| method | seeds | steps to 50% | steps to 90% | final | curves |",
+        "|---|---|---|---|---|---|",
+    ]
+    stats = {}
+    for method, runs in (("UDPO+HER", udpo), ("SAC+HER", her)):
+        stats[method] = method_statistics(runs)
+        curves = "; ".join(f"{run['seed']}: " + " ".join(f"{rate:.2f}" for rate in run["success_rate"]) for run in runs)
+        steps = [
+            f"{format_estimate(stats[method][key], 0)} ({stats[method][key]['reached']}/{len(runs)})"
+            for key in ("steps_to_50", "steps_to_90")
+        ]
+        final = format_estimate(stats[method]["final_success"])
+        lines.append(f"| {method} | {len(runs)} | {steps[0]} | {steps[1]} | {final} | {curves} |")
+    ratio = compare(udpo, her)["steps_to_90_ratio"]
+    lines += ["", f"Verdict (UDPO+HER against SAC+HER): {verdict(stats['UDPO+HER'], stats['SAC+HER'], ratio)}", ""]
+    return "\n".join(lines)
+
+
+def main() -> None:
+    udpo, her = RUNS["UDPO+HER"], RUNS["SAC+HER"]
+    measures = {
+        "Deterministic evaluations, 25k grid to 150k": (evaluation_runs(udpo, GRID), evaluation_runs(her, GRID)),
+        "Training episodes, success per 10k steps from 60k to 150k": (training_runs(udpo), training_runs(her)),
+        "Deterministic evaluations, 12.5k grid (the seeds evaluated on it)": (
+            evaluation_runs(udpo, None),
+            evaluation_runs(her, None),
+        ),
+    }
+    text = "\n".join(report(title, *runs) for title, runs in measures.items() if all(runs))
+    print(text)
+    (HERE / "seeds.txt").write_text(text + "\n")
+
+
+if __name__ == "__main__":
+    main()
