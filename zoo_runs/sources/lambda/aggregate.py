@@ -6,8 +6,9 @@ run's curve into ``curves.json`` (the source of the table, with where it came fr
     python zoo_runs/sources/lambda/aggregate.py [--scratch /tmp/lambda] [--add /tmp/probe] > zoo_runs/sources/lambda/table.md
 
 With ``--scratch`` it first collects the runs' evaluations from the scratch folder into ``curves.json``; with ``--add``
-it adds the Reacher and Maze2D runs of a later scratch folder (:func:`collect_more`) to those already there; without
-either, it only re-renders the table from ``curves.json``.
+it adds the Reacher and Maze2D runs of a later scratch folder (:func:`collect_more`) to those already there; with
+``--add-high-dim ROOT COEF`` the High-Dim-Action runs of ``high_dim.py --coefs COEF --root ROOT``; without any, it only
+re-renders the table from ``curves.json``.
 """
 
 import argparse
@@ -116,23 +117,32 @@ def collect(scratch: Path) -> dict:
     point["UDPO lambda 0.005 (preset, sources table, first 80k)"] = summary_runs(summary, "UDPO+HER", 80_000)
     point["SAC+HER (sources table, first 80k)"] = summary_runs(summary, "SAC+HER", 80_000)
     # d. High-Dim-Action: the source (FetchReach, 8k) and the transfer (FetchReachHighDim, 8k)
-    for task, stage in (("high-dim-action: source Pilot/FetchReach-v0", "source"), ("high-dim-action: transfer", "pilot")):
-        entry = tasks.setdefault(task, {})
-        for coef in ("0", "0.001", "0.01"):
-            root = scratch / f"high_dim/lambda_{coef}/high-dim-action"
-            runs = []
-            for seed in range(3):
-                found = sorted((root / f"models/seed_{seed}/{stage}").glob("**/evaluations.npz"))
-                if found:
-                    plan_error = last_plan_error(root / f"models/seed_{seed}/{stage}/progress.csv")
-                    runs.append({"seed": seed, **npz_curve(found[0]), "final_plan_error": plan_error})
-            if runs:
-                entry[f"UDPO lambda {float(coef):g} (source's)"] = runs
-        if stage == "pilot":  # lambda 1e-2 (the preset then) and SAC + HER: the challenge's own cpu run, earlier code
-            shipped = SOURCES.parent / "high-dim-action/summary.json"
-            entry["UDPO lambda 0.01 (zoo_runs/high-dim-action)"] = summary_runs(shipped, "UDPO+PILoT (planner transfer)")
-            entry["SAC+HER (zoo_runs/high-dim-action)"] = summary_runs(shipped, "SAC+HER (scratch)")
+    for coef in ("0", "0.001", "0.01"):
+        add_high_dim(tasks, scratch / "high_dim", coef)
+    # lambda 1e-2 (the preset then) and SAC + HER: the challenge's own cpu run, earlier code
+    transfer = tasks.setdefault("high-dim-action: transfer", {})
+    shipped = SOURCES.parent / "high-dim-action/summary.json"
+    transfer["UDPO lambda 0.01 (zoo_runs/high-dim-action)"] = summary_runs(shipped, "UDPO+PILoT (planner transfer)")
+    transfer["SAC+HER (zoo_runs/high-dim-action)"] = summary_runs(shipped, "SAC+HER (scratch)")
     return tasks
+
+
+#: The High-Dim-Action rows: the source (FetchReach, 8k steps) and the transfer (FetchReachHighDim, 8k), by stage.
+HIGH_DIM_TASKS = {"high-dim-action: source Pilot/FetchReach-v0": "source", "high-dim-action: transfer": "pilot"}
+
+
+def add_high_dim(tasks: dict, root: Path, coef: str) -> None:
+    """The runs of ``high_dim.py --coefs COEF --root ROOT`` (seeds 0-2), as rows "UDPO lambda COEF (source's)"."""
+    challenge = root / f"lambda_{coef}/high-dim-action"
+    for task, stage in HIGH_DIM_TASKS.items():
+        runs = []
+        for seed in range(3):
+            found = sorted((challenge / f"models/seed_{seed}/{stage}").glob("**/evaluations.npz"))
+            if found:
+                plan_error = last_plan_error(challenge / f"models/seed_{seed}/{stage}/progress.csv")
+                runs.append({"seed": seed, **npz_curve(found[0]), "final_plan_error": plan_error})
+        if runs:
+            tasks.setdefault(task, {})[f"UDPO lambda {float(coef):g} (source's)"] = runs
 
 
 def scratch_seeds(folder: Path, env_id: str) -> list[dict]:
@@ -206,12 +216,17 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--scratch", default=None)
     parser.add_argument("--add", default=None)
+    parser.add_argument("--add-high-dim", nargs=2, metavar=("ROOT", "COEF"), help="high_dim.py's --root and one --coefs")
     args = parser.parse_args()
     path = HERE / "curves.json"
     if args.scratch:
         path.write_text(json.dumps(collect(Path(args.scratch)), indent=1))
     if args.add:
         path.write_text(json.dumps({**json.loads(path.read_text()), **collect_more(Path(args.add))}, indent=1))
+    if args.add_high_dim:
+        tasks = json.loads(path.read_text())
+        add_high_dim(tasks, Path(args.add_high_dim[0]), args.add_high_dim[1])
+        path.write_text(json.dumps(tasks, indent=1))
     print(table(json.loads(path.read_text())))
 
 
