@@ -47,6 +47,7 @@ VARIANTS = {
     "idlr1e-3": "inverse_dynamics_learning_rate 1e-3",
     "plr1e-3": "planner_learning_rate 1e-3",
     "beta0.5": "planner_nll_beta 0.5",
+    "lam1e-4": "planner_coef (lambda) 1e-4",
 }
 
 
