@@ -415,7 +415,8 @@ SHIPPED_DIR = REPO_DIR / "zoo_runs" / "zero-shot-ant-maze" / "controller"
 #: The Maze2D goal planner Maze-Car's ``--reuse-shipped`` run shares between its seeds.
 MAZE_CAR_PLANNER = SHIPPED_DIR / "maze2d_planner.pt"
 #: The trained sources shipped in the repository, laid out as the zoo saves a run (``zoo_runs/sources/shipped/README.md``
-#: says how each was made), each with its ``VecNormalize``: UDPO on Fetch-Reach (the sources benchmark's recipe, seed 0).
+#: says how each was made), each with its ``VecNormalize``: UDPO on Fetch-Reach (the sources benchmark's recipe, seed 0)
+#: and on Fetch-Push (:data:`FETCH_PUSH_FAST`, seed 0).
 SOURCES_DIR = REPO_DIR / "zoo_runs" / "sources" / "shipped"
 FETCH_REACH_SOURCE = SOURCES_DIR / "fetchreach_seed0" / "udpo" / "Pilot-FetchReach-v0_1" / "Pilot-FetchReach-v0.zip"
 #: UDPO on Fetch-Push with :data:`FETCH_PUSH_FAST` (lambda 1e-4, 50k warm-up steps), seed 0, its 150k-step checkpoint.

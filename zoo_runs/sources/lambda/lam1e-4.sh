@@ -2,7 +2,7 @@
 # lambda 1e-4 (UDPO's default entropy term) on the sources, seeds 0-2 (README, sixth sitting), from the repository root:
 #   bash zoo_runs/sources/lambda/lam1e-4.sh
 # each evaluations.npz -> npz/<task>_lam1e-4_seed_<s>.npz
-cd /work/main && source .venv/bin/activate
+cd "$(dirname "$0")/../../.." && source .venv/bin/activate
 export OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 MUJOCO_GL=osmesa
 N=zoo_runs/sources/lambda/npz; S=/tmp/s36/lam
 for seed in 0 1 2; do
