@@ -67,6 +67,20 @@ def test_a_seed_stopped_early_has_not_reached() -> None:
     assert stats["steps_to_50"]["reached"] == 2
 
 
+def test_a_budget_censors_every_run() -> None:
+    """With the budget's censoring step, a run stopped early counts as one that never reached 90% in the budget."""
+    full = {"timesteps": [10, 20, 30, 40], "success_rate": [0.0, 0.5, 0.9, 1.0]}
+    stopped = {"timesteps": [10, 20], "success_rate": [0.0, 0.5]}
+    assert run_scores(stopped["timesteps"], stopped["success_rate"], censored_at=50)["steps_to_90"] == 50
+    stats = method_statistics([full, stopped, stopped], reps=REPS, censored_at=50)
+    assert stats["steps_to_90"]["value"] == pytest.approx(130 / 3) and stats["steps_to_90"]["reached"] == 1  # 30, 50, 50
+    assert compare([stopped] * 3, [full] * 3, reps=REPS, censored_at=50)["steps_to_90_ratio"]["value"] == pytest.approx(
+        50 / 30
+    )
+    with pytest.raises(ValueError, match="past the last evaluated step"):
+        run_scores(full["timesteps"], full["success_rate"], censored_at=40)
+
+
 def test_method_statistics_and_pointwise_iqm() -> None:
     runs = ramps(np.array([0, 0, 0, 30_000]))  # three seeds at 90% by 8000, one never learns
     stats = method_statistics(runs, reps=REPS)

@@ -35,12 +35,15 @@ REPS = 2000
 MIN_SEEDS = 3
 
 
-def run_scores(timesteps: Sequence[int], success_rate: Sequence[float]) -> dict[str, float]:
+def run_scores(timesteps: Sequence[int], success_rate: Sequence[float], censored_at: float | None = None) -> dict[str, float]:
     """
     The scores of one seed's learning curve (see the module doc).
 
     :param timesteps: the evaluated env steps (increasing)
     :param success_rate: the success rate of each evaluation, in [0, 1]
+    :param censored_at: where a threshold never reached counts (None: one evaluation interval past the last step);
+        give the budget's own to judge a run that stopped before the budget (it crashed, or was stopped) as one that
+        ran to the budget without reaching it, not as one that would have reached it next
     :return: ``area``, ``final_success``, ``steps_to_50``, ``steps_to_90`` (censored at ``censored_at``) and
         ``censored_at``
     """
@@ -52,7 +55,10 @@ def run_scores(timesteps: Sequence[int], success_rate: Sequence[float]) -> dict[
     if np.any((rates < 0) | (rates > 1)):
         raise ValueError(f"Success rates must lie in [0, 1], got {rates.tolist()}.")
     steps = np.asarray(timesteps, dtype=np.float64)
-    censored_at = steps[-1] + (steps[-1] - steps[-2] if len(steps) > 1 else 1.0)
+    if censored_at is None:
+        censored_at = steps[-1] + (steps[-1] - steps[-2] if len(steps) > 1 else 1.0)
+    elif censored_at <= steps[-1]:
+        raise ValueError(f"censored_at ({censored_at}) must lie past the last evaluated step ({steps[-1]}).")
     scores = {"area": float(rates.mean()), "final_success": float(rates[-1]), "censored_at": float(censored_at)}
     for threshold in (0.5, 0.9):
         reached = np.flatnonzero(rates >= threshold)
@@ -129,19 +135,22 @@ def iqm(scores: np.ndarray) -> float:
     return float(metrics.aggregate_iqm(scores))
 
 
-def method_statistics(runs: Sequence[dict[str, Any]], seed: int = 0, reps: int = REPS) -> dict[str, Any]:
+def method_statistics(
+    runs: Sequence[dict[str, Any]], seed: int = 0, reps: int = REPS, censored_at: float | None = None
+) -> dict[str, Any]:
     """
     IQM over seeds and its interval for each of :data:`METRICS`.
 
     :param runs: the method's runs, each with ``timesteps`` and ``success_rate`` (``summary.json``'s ``runs``)
     :param seed: the bootstrap's random seed
     :param reps: bootstrap replications
+    :param censored_at: every run's censoring step (:func:`run_scores`; None: each run's own)
     :return: ``{"seeds": n, metric: {"value", "ci"}, ...}``; the steps' entries also hold ``reached`` and
         ``censored_at``
     """
     if not runs:
         raise ValueError("No runs to aggregate.")
-    per_run = [run_scores(run["timesteps"], run["success_rate"]) for run in runs]
+    per_run = [run_scores(run["timesteps"], run["success_rate"], censored_at) for run in runs]
     result: dict[str, Any] = {"seeds": len(runs)}
     for metric in METRICS:
         values = np.array([scores[metric] for scores in per_run])
@@ -174,7 +183,11 @@ def verdict(gain: dict[str, Any], seeds: int) -> str:
 
 
 def compare(
-    pilot_runs: Sequence[dict[str, Any]], her_runs: Sequence[dict[str, Any]], seed: int = 0, reps: int = REPS
+    pilot_runs: Sequence[dict[str, Any]],
+    her_runs: Sequence[dict[str, Any]],
+    seed: int = 0,
+    reps: int = REPS,
+    censored_at: float | None = None,
 ) -> dict[str, Any]:
     """
     A PILoT method against SAC+HER on the area under the success curve.
@@ -183,12 +196,13 @@ def compare(
     :param her_runs: SAC+HER's runs
     :param seed: the bootstrap's random seed
     :param reps: bootstrap replications
+    :param censored_at: every run's censoring step (:func:`run_scores`; None: each run's own)
     :return: ``probability_of_improvement``, ``area_gain`` and ``steps_to_90_ratio`` (``{"value", "ci"}``; the ratio
         is the IQM of PILoT's steps to 90% over HER's, censored seeds included, None when no seed of either reached
         90%) and ``verdict``
     """
     pilot_scores, her_scores = (
-        [run_scores(run["timesteps"], run["success_rate"]) for run in runs] for runs in (pilot_runs, her_runs)
+        [run_scores(run["timesteps"], run["success_rate"], censored_at) for run in runs] for runs in (pilot_runs, her_runs)
     )
     pilot, her = (np.array([scores["area"] for scores in side]) for side in (pilot_scores, her_scores))
 

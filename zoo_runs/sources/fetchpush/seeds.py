@@ -2,7 +2,9 @@
 UDPO + HER (lambda 1e-4, linearised entropy term) against SAC + HER on Fetch-Push, both with the 50k-step random
 warm-up (``FETCH_PUSH_FAST``), over every seed whose files are here: the ``rliable`` IQM over seeds of the steps to 50%
 / 90% success, its stratified-bootstrap 95% interval, and the ratio of the two methods' IQM steps to 90% with its
-interval (issue 21's rule: at most 1.1x), computed by the package's ``statistics`` and ``sources.verdict``.
+interval (issue 21's rule: at most 1.1x), computed by the package's ``statistics`` and ``sources.verdict``. Every run is
+judged on the 150k budget: a seed that never reached a threshold by then counts one interval past it, also when it
+stopped before 150k (crashed, or stopped by hand: each curve says where it ends).
 
 Two measures of the same runs:
 
@@ -61,8 +63,13 @@ def training_runs(run: str) -> list[dict]:
     return runs
 
 
-def report(title: str, udpo: list[dict], her: list[dict]) -> str:
-    """A markdown table of both methods' statistics and the verdict with the ratio's interval."""
+def report(title: str, udpo: list[dict], her: list[dict], interval: int) -> str:
+    """
+    A markdown table of both methods' statistics and the verdict with the ratio's interval, every run judged on the
+    budget: a threshold not reached by :data:`LAST` counts at ``LAST + interval``, whether the run went on to the budget
+    or stopped before it (crashed, or stopped by hand: ``last`` says where).
+    """
+    censored_at = LAST + interval
     lines = [
         f"### {title}",
         "",
@@ -71,15 +78,18 @@ def report(title: str, udpo: list[dict], her: list[dict]) -> str:
     ]
     stats = {}
     for method, runs in (("UDPO+HER", udpo), ("SAC+HER", her)):
-        stats[method] = method_statistics(runs)
-        curves = "; ".join(f"{run['seed']}: " + " ".join(f"{rate:.2f}" for rate in run["success_rate"]) for run in runs)
+        stats[method] = method_statistics(runs, censored_at=censored_at)
+        curves = "; ".join(
+            f"{run['seed']}: " + " ".join(f"{rate:.2f}" for rate in run["success_rate"]) + f" (last {run['timesteps'][-1]})"
+            for run in runs
+        )
         steps = [
             f"{format_estimate(stats[method][key], 0)} ({stats[method][key]['reached']}/{len(runs)})"
             for key in ("steps_to_50", "steps_to_90")
         ]
         final = format_estimate(stats[method]["final_success"])
         lines.append(f"| {method} | {len(runs)} | {steps[0]} | {steps[1]} | {final} | {curves} |")
-    ratio = compare(udpo, her)["steps_to_90_ratio"]
+    ratio = compare(udpo, her, censored_at=censored_at)["steps_to_90_ratio"]
     lines += ["", f"Verdict (UDPO+HER against SAC+HER): {verdict(stats['UDPO+HER'], stats['SAC+HER'], ratio)}", ""]
     return "\n".join(lines)
 
@@ -87,14 +97,15 @@ def report(title: str, udpo: list[dict], her: list[dict]) -> str:
 def main() -> None:
     udpo, her = RUNS["UDPO+HER"], RUNS["SAC+HER"]
     measures = {
-        "Deterministic evaluations, 25k grid to 150k": (evaluation_runs(udpo, GRID), evaluation_runs(her, GRID)),
-        "Training episodes, success per 10k steps from 60k to 150k": (training_runs(udpo), training_runs(her)),
+        "Deterministic evaluations, 25k grid to 150k": (evaluation_runs(udpo, GRID), evaluation_runs(her, GRID), GRID),
+        "Training episodes, success per 10k steps from 60k to 150k": (training_runs(udpo), training_runs(her), WINDOW),
         "Deterministic evaluations, 12.5k grid (the seeds evaluated on it)": (
             evaluation_runs(udpo, None),
             evaluation_runs(her, None),
+            GRID // 2,
         ),
     }
-    text = "\n".join(report(title, *runs) for title, runs in measures.items() if all(runs))
+    text = "\n".join(report(title, *runs) for title, runs in measures.items() if runs[0] and runs[1])
     print(text)
     (HERE / "seeds.txt").write_text(text + "\n")
 
