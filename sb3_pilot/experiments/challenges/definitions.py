@@ -279,18 +279,10 @@ MAZE_CAR_STEPS = {
 }
 
 HIGH_DIM_ACTION_STAGES = _high_dim_stages("Pilot/FetchReach-v0", "Pilot/FetchReachHighDim-v0")
-HIGH_DIM_PUSH_STAGES = _high_dim_stages("Pilot/FetchPush-v0", "Pilot/FetchPushHighDim-v0")
 HIGH_DIM_ACTION_STEPS = {
     "smoke": {"source": 400, "pilot": 300, "her": 300},
     "demo": {"source": 8000, "pilot": 4000, "her": 4000},
     "cpu": {"source": 8000, "pilot": 8000, "her": 8000},
-}
-
-#: High-Dim-Action on Push: steps per stage and budget (cpu: where SAC + HER and UDPO learnt Fetch-Push with
-#: :data:`FETCH_PUSH_FAST`).
-HIGH_DIM_PUSH_STEPS: dict[str, dict[str, int]] = {
-    "smoke": {"source": 1200, "pilot": 1200, "her": 1200},
-    "cpu": {"source": 150_000, "pilot": 150_000, "her": 150_000},
 }
 
 CHALLENGES: dict[str, Challenge] = {
@@ -308,8 +300,12 @@ CHALLENGES: dict[str, Challenge] = {
             "high-dim-action-push",
             "UDPO on Fetch-Push -> its state planner, frozen, in a UDPO on Fetch-Push-High-Dim, vs SAC+HER",
             "Pilot/FetchPushHighDim-v0",
-            HIGH_DIM_PUSH_STAGES,
-            steps=HIGH_DIM_PUSH_STEPS,
+            _high_dim_stages("Pilot/FetchPush-v0", "Pilot/FetchPushHighDim-v0"),
+            # cpu: the steps in which SAC + HER and UDPO learnt Fetch-Push with FETCH_PUSH_FAST
+            steps={
+                "smoke": {"source": 1200, "pilot": 1200, "her": 1200},
+                "cpu": {"source": 150_000, "pilot": 150_000, "her": 150_000},
+            },
             fast_hyperparams=FETCH_PUSH_FAST,
         ),
         Challenge(
@@ -434,6 +430,32 @@ def _shipped_planner_transfer(outputs: dict[str, Path], net_arch: list[int]) -> 
     return {**transfer, "policy_kwargs": {**transfer["policy_kwargs"], "net_arch": net_arch}}
 
 
+def _from_shipped_source(challenge: Challenge, description: str, source: Path, net_arch: list[int]) -> Challenge:
+    """
+    A High-Dim-Action challenge whose every seed's target reuses the state planner of one shipped source: no source
+    stage trains.
+
+    :param challenge: the challenge (stages ``source``, ``pilot``, then the baselines)
+    :param description: the new challenge's description
+    :param source: the shipped source's zoo model (its ``VecNormalize`` beside it)
+    :param net_arch: the shipped source's hidden layers, the target's at every budget
+    """
+    _, pilot, *baselines = challenge.stages
+    return dataclasses.replace(
+        challenge,
+        name=f"{challenge.name}-shipped",
+        description=description,
+        stages=(
+            Shipped("source", source),
+            dataclasses.replace(pilot, params=partial(_shipped_planner_transfer, net_arch=net_arch)),
+            *baselines,
+        ),
+        steps={
+            budget: {name: n for name, n in steps.items() if name != "source"} for budget, steps in challenge.steps.items()
+        },
+    )
+
+
 #: ``--reuse-shipped``: challenges that evaluate the shipped models instead of training them, by challenge name.
 REUSE_SHIPPED: dict[str, Challenge] = {
     "zero-shot-ant-maze": Challenge(
@@ -461,30 +483,18 @@ REUSE_SHIPPED: dict[str, Challenge] = {
         steps={"smoke": {"pilot": 50}},  # smoke: 50-step episodes
     ),
     # one source for every seed: the shipped Fetch-Reach UDPO, whose state planner every seed's target reuses
-    "high-dim-action": Challenge(
-        "high-dim-action-shipped",
+    "high-dim-action": _from_shipped_source(
+        CHALLENGES["high-dim-action"],
         "the shipped Fetch-Reach UDPO's state planner, frozen, in a UDPO on Fetch-Reach-High-Dim, vs SAC+HER",
-        "Pilot/FetchReachHighDim-v0",
-        (
-            Shipped("source", FETCH_REACH_SOURCE),
-            dataclasses.replace(HIGH_DIM_ACTION_STAGES[1], params=partial(_shipped_planner_transfer, net_arch=[64, 64])),
-            *HIGH_DIM_ACTION_STAGES[2:],
-        ),
-        steps={budget: {name: steps[name] for name in ("pilot", "her")} for budget, steps in HIGH_DIM_ACTION_STEPS.items()},
-        fast_hyperparams=RL_ZOO_FETCH_NORMALIZED,
+        FETCH_REACH_SOURCE,
+        net_arch=[64, 64],
     ),
-    # one source for every seed: the shipped Fetch-Push UDPO (256x256, this challenge's recipe)
-    "high-dim-action-push": Challenge(
-        "high-dim-action-push-shipped",
+    # the same from the shipped Fetch-Push UDPO (256x256, this challenge's recipe)
+    "high-dim-action-push": _from_shipped_source(
+        CHALLENGES["high-dim-action-push"],
         "the shipped Fetch-Push UDPO's state planner, frozen, in a UDPO on Fetch-Push-High-Dim, vs SAC+HER",
-        "Pilot/FetchPushHighDim-v0",
-        (
-            Shipped("source", FETCH_PUSH_SOURCE),
-            dataclasses.replace(HIGH_DIM_PUSH_STAGES[1], params=partial(_shipped_planner_transfer, net_arch=[256, 256])),
-            *HIGH_DIM_PUSH_STAGES[2:],
-        ),
-        steps={budget: {name: steps[name] for name in ("pilot", "her")} for budget, steps in HIGH_DIM_PUSH_STEPS.items()},
-        fast_hyperparams=FETCH_PUSH_FAST,
+        FETCH_PUSH_SOURCE,
+        net_arch=[256, 256],
     ),
     # one source for every seed: the plain Maze2D planner shipped with Zero-shot Ant-Maze (UDPO on Maze2D, uniform starts
     # and goals, 20k steps, seed 0: this challenge's source recipe at seed 0)
