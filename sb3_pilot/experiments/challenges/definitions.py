@@ -95,8 +95,9 @@ RL_ZOO_FETCH_NORMALIZED: dict[str, dict[str, Any]] = {**RL_ZOO_FETCH, "*": {**RL
 #: 256x256 networks (RL-Zoo's FetchPush uses 512x512x512), a target entropy of 0 instead of -dim(action) (with -4 SAC
 #: + HER's temperature collapsed and it stayed at chance) and a 50k-step random warm-up (random actions move the object
 #: in 18% of episodes, more than a young policy does). SAC + HER reached 90% at 100-150k steps with it, 200k with 1000
-#: warm-up steps. UDPO takes the linearised entropy term and lambda 1e-4: at lambda 1e-3 its deterministic action
-#: shrank to a third of SAC + HER's and it stayed at chance to 175k steps, at 1e-4 it reached 90% at 125k.
+#: warm-up steps (4 of 4 seeds). UDPO takes the linearised entropy term and lambda 1e-4: at lambda 1e-3 its
+#: deterministic action shrank to a third of SAC + HER's and it stayed at chance to 175k steps; at 1e-4 it reached 90%
+#: at 125k-150k on 2 of 4 seeds, and one seed diverged from SB3's initial temperature of 1 (1.30x SAC + HER's steps).
 FETCH_PUSH_FAST: dict[str, dict[str, Any]] = {
     **RL_ZOO_FETCH_NORMALIZED,
     "*": {
