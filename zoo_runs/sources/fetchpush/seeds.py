@@ -19,10 +19,10 @@ Run from the repository root: ``python zoo_runs/sources/fetchpush/seeds.py`` (ou
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import numpy as np
+import pandas
 
 from sb3_pilot.experiments.benchmarks.sources import verdict
 from sb3_pilot.experiments.statistics import compare, format_estimate, method_statistics
@@ -54,9 +54,9 @@ def training_runs(run: str) -> list[dict]:
     """Each seed's training-episode success per :data:`WINDOW` steps from :data:`START` to :data:`LAST`."""
     runs = []
     for path in sorted(HERE.glob(f"monitor_{run}_seed_*.csv")):
-        rows = list(csv.reader(path.open()))[2:]
-        ends = np.cumsum([int(row[1]) for row in rows])
-        success = np.array([row[3] == "True" for row in rows], dtype=float)
+        episodes = pandas.read_csv(path, skiprows=1)  # SB3's Monitor file: a JSON header line, then the episodes
+        ends = episodes["l"].cumsum().to_numpy()
+        success = episodes["is_success"].to_numpy(dtype=float)
         windows = [end for end in range(START + WINDOW, LAST + 1, WINDOW) if end <= ends[-1]]
         rates = [success[(ends > end - WINDOW) & (ends <= end)].mean() for end in windows]
         runs.append({"seed": int(path.stem.rsplit("_", 1)[1]), "timesteps": windows, "success_rate": rates})
