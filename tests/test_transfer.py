@@ -57,6 +57,17 @@ def test_transfer_copies_planner_and_frozen_planner_stays_unchanged(source):
     assert not all(th.equal(value, learned[name]) for name, value in inverse_dynamics.items())
 
 
+def test_frozen_planner_trains_neither_critics_nor_temperature(source):
+    # pi(a | s, g) = I(a | s, h(s' | s, g)) with h frozen reads neither: their updates would be wasted work
+    target = load_planner_from(source, Monitor(DoubledActions(PointGoalEnv())), **TARGET_KWARGS)
+    critic = {name: value.clone() for name, value in target.policy.critic.state_dict().items()}
+    log_ent_coef = target.log_ent_coef.detach().clone()
+    target.learn(500)
+    assert target._n_updates > 0
+    assert_same({name: value.clone() for name, value in target.policy.critic.state_dict().items()}, critic)
+    assert th.equal(target.log_ent_coef.detach(), log_ent_coef)
+
+
 def test_unfrozen_planner_trains_and_path_source(source, tmp_path):
     source.save(tmp_path / "source")
     target = load_planner_from(tmp_path / "source", DoubledActions(PointGoalEnv()), freeze=False, **TARGET_KWARGS)

@@ -1,6 +1,6 @@
 """
 State-planner transfer across action spaces (paper section 3.3, the High-Dim-Action challenge): a target UDPO takes a
-source UDPO's state planner ``h(s' | s, g)``, frozen, and learns only its own inverse dynamics (and critics).
+source UDPO's state planner ``h(s' | s, g)``, frozen, and learns only its own inverse dynamics.
 
 One operation, two entry points: :func:`load_planner_from` (Python) and :class:`StatePlannerTransferCallback` (the
 RL Zoo's YAML); both hand the weights to :meth:`UDPOPolicy.load_state_planner`.

@@ -374,7 +374,8 @@ class UDPOPolicy(BasePolicy):
     :param planner_lr_schedule: Learning rate schedule of the state planner (None: ``lr_schedule``)
     :param inverse_dynamics_lr_schedule: Learning rate schedule of the inverse dynamics (None: ``lr_schedule``)
     :param freeze_state_planner: hold the state planner fixed (a planner transferred from a source, see
-        :meth:`load_state_planner`): UDPO then trains only the inverse dynamics and the critics
+        :meth:`load_state_planner`): UDPO then trains only the inverse dynamics (the policy reads neither the
+        critics nor the temperature, which exist to train the planner, so they stay untrained)
     :param use_sde: must be False (accepted because SAC writes it into the ``policy_kwargs`` dict it is given)
     :param forward_dynamics: build a forward dynamics model ``T(s' | s, a)`` (``forward_dynamics`` attribute, same
         architecture as the inverse dynamics, trained with its learning rate); UDPO sets it from its ``plan_target``

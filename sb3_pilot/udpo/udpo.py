@@ -338,13 +338,16 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
             update_learning_rate(
                 self.forward_dynamics.optimizer, self.inverse_dynamics_lr_schedule(self._current_progress_remaining)
             )
-        train_planner = not self.policy.freeze_state_planner
         losses = LossRecorder()
 
         for gradient_step in range(gradient_steps):
             # I is refitted before the policy update that follows it (paper section 3.1, Algorithm 1)
             if (self._n_updates + gradient_step) % self.inverse_dynamics_interval == 0:
                 self.train_inverse_dynamics(self.inverse_dynamics_gradient_steps, batch_size)
+            if self.policy.freeze_state_planner:
+                # A frozen h (a planner transferred from a source): pi(a | s, g) = I(a | s, h(s' | s, g)) reads neither
+                # the critics nor the temperature, which exist to train h, so they are left as they are
+                continue
 
             replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
             discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
@@ -394,10 +397,9 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
             losses.add("actor_loss", actor_loss)
             losses.add("planner_nll", planner_nll)
             losses.add("planner_loss", planner_loss)
-            if train_planner:
-                self.state_planner.optimizer.zero_grad()
-                planner_loss.backward(inputs=self._planner_parameters)
-                self.state_planner.optimizer.step()
+            self.state_planner.optimizer.zero_grad()
+            planner_loss.backward(inputs=self._planner_parameters)
+            self.state_planner.optimizer.step()
 
             # Target critics: SAC's rule
             self._update_target_critics(gradient_step)

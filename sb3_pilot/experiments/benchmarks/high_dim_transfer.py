@@ -1,7 +1,7 @@
 """
 The paper's High-Dim-Action challenge on Fetch-Reach: a source UDPO on Pilot/FetchReach-v0, then, on
 Pilot/FetchReachHighDim-v0 (8-dim actions, other action dynamics, 80% gravity), a target UDPO with the transferred,
-frozen state planner (only inverse dynamics and critics learn) against SAC + HER from scratch. Success vs env steps.
+frozen state planner (only its inverse dynamics learns) against SAC + HER from scratch. Success vs env steps.
 
     OMP_NUM_THREADS=1 python -m sb3_pilot.experiments.benchmarks.high_dim_transfer \
         --source-steps 5000 --steps 5000 --seeds 0 1 2
