@@ -179,7 +179,8 @@ def train_udpo(
     :param env_class: the env
     :param total_timesteps: env steps
     :param seed: the seed
-    :param planner_coef: lambda; None: UDPO's default (1e-2, the paper's, is what the point-env tests were written with)
+    :param planner_coef: lambda (1e-2, the paper's, is what the point-env tests were written with); None: UDPO's
+        default
     :param plan_target: what the planner's likelihood term fits
     """
     lambda_kwargs = {} if planner_coef is None else {"planner_coef": planner_coef}

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+import yaml
 
 from sb3_pilot.experiments.challenges import CHALLENGES, format_table, only_stages, run_challenge, steps_to
 from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
@@ -212,6 +213,31 @@ def test_complex_morph_recipe_is_every_methods(tmp_path: Path) -> None:
     her = params("her")
     assert "GoalRelativeExtractor" in her["policy_kwargs"] and her["n_envs"] == "2" and her["gamma"] == "0.98"
     assert all(params(name) == her for name in ("pilot", "pilot_disp", "mega"))
+
+
+def test_a_changed_preset_makes_a_stage_stale(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A stage's hash covers the conf file's entry under its command: a stage trained under another preset reruns."""
+    from sb3_pilot.experiments.challenges import stages
+    from sb3_pilot.experiments.challenges.definitions import BUDGETS
+    from sb3_pilot.experiments.zoo import hyperparams_dir
+
+    challenge = CHALLENGES["high-dim-action"]
+    source = next(stage for stage in challenge.stages if stage.name == "source")
+    ctx = stages.StageContext(tmp_path, 0, BUDGETS["cpu"], challenge.steps["cpu"], challenge.fast_hyperparams)
+
+    def digest() -> str:
+        return stages.config_hash(source.config(ctx, tmp_path / "source"), [])
+
+    before = digest()
+    conf = tmp_path / "hyperparams"
+    shutil.copytree(hyperparams_dir(), conf)
+    monkeypatch.setattr(stages, "hyperparams_dir", lambda: conf)
+    assert digest() == before  # the same presets elsewhere
+    path = conf / BUDGETS["cpu"].conf_dir / source.conf_file
+    presets = yaml.safe_load(path.read_text())
+    presets[source.env_id]["planner_coef"] *= 2
+    path.write_text(yaml.safe_dump(presets))
+    assert digest() != before
 
 
 def test_recorded_seeds_outlive_their_models(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -202,7 +202,7 @@ def test_wall_maze_landmarks_go_around_the_wall():
     """
     A teacher that goes around the wall, and the landmarks distilled from its real steps go around too: the path
     from (-0.5, -0.6) to (0.5, -0.6) crosses x = 0 only through the gap (y > 0, with 0.1 of slack), snapped to the
-    source's positions (the default) or not. The teacher is UDPO with its defaults (lambda 1e-3), 20k steps, seed 2;
+    source's positions (the default) or not. The teacher is UDPO with its defaults (lambda 1e-4), 20k steps, seed 2;
     the student needs the default width, a [64, 64] one cuts through the thin wall (tests/wall_maze_teacher.py).
     This tests distillation from a teacher that learnt, not how often UDPO learns: measured at 16 seeds
     (zoo_runs/sources/lambda/README.md), UDPO's defaults take this pair round the wall at 20k on 3-10 of 16 seeds (seed

@@ -6,8 +6,8 @@ A challenge is a list of stages run once per seed: :class:`ZooTrain` (a ``python
 controller guided by a goal planner, :class:`~sb3_pilot.LandmarkGuidance`, with no training); :class:`Shipped`
 stands for a file that comes with the repository (a trained controller or planner) in place of a training stage.
 Each stage writes into its own folder ``<root>/<challenge>/models/seed_<k>/<stage>/`` (``models/`` is gitignored)
-and, when it has finished, a marker ``stage.json`` holding the hash of its configuration (its settings, its budget
-and the hashes of the stages it reads from). A stage whose marker matches is skipped on the next run; one without
+and, when it has finished, a marker ``stage.json`` holding the hash of its configuration (its settings and preset,
+its budget and the hashes of the stages it reads from). A stage whose marker matches is skipped on the next run; one without
 (interrupted) or with another hash is removed and run again. Each stage runs in a process of its own whose output goes to
 ``stage.log`` in its folder (:mod:`sb3_pilot.experiments.challenges.backends`).
 """
@@ -248,10 +248,15 @@ class ZooTrain:
         run_dir = zoo_run_dir(stage_dir, self.algo, self.env_id)
         return run_dir / f"{self.env_id.replace('/', '-')}.zip"
 
+    def preset(self, ctx: StageContext) -> dict[str, Any]:
+        """The conf file's entry for this stage's task: the hyperparameters that the command's ``-params`` override."""
+        conf_file = ctx.budget.conf_dir + self.conf_file
+        return yaml.safe_load((hyperparams_dir() / conf_file).read_text())[self.env_id]
+
     def zoo_args(self, ctx: StageContext, stage_dir: Path) -> list[str]:
         """Arguments of ``python -m sb3_pilot.experiments.zoo`` for this stage (but verbosity and progress bar)."""
         conf_file = ctx.budget.conf_dir + self.conf_file
-        entry = yaml.safe_load((hyperparams_dir() / conf_file).read_text())[self.env_id]
+        entry = self.preset(ctx)
         steps = ctx.steps.get(self.name) or int(entry["n_timesteps"])
         layers = [
             # a buffer larger than the run is never filled: allocate (and save) only what is used
@@ -290,8 +295,11 @@ class ZooTrain:
         return [*args, "--save-replay-buffer"] if self.save_replay_buffer else args
 
     def config(self, ctx: StageContext, stage_dir: Path) -> dict[str, Any]:
-        """What decides the stage's result (hashed for resuming): its zoo command line."""
-        return {"zoo": self.zoo_args(ctx, stage_dir)}
+        """
+        What decides the stage's result (hashed for resuming): its zoo command line and the conf file's entry under it
+        (a changed preset makes a stage trained under the old one stale).
+        """
+        return {"zoo": self.zoo_args(ctx, stage_dir), "preset": self.preset(ctx)}
 
     def describe(self, ctx: StageContext, stage_dir: Path) -> str:
         """One line for the progress display."""
