@@ -391,6 +391,18 @@ def test_inverse_dynamics_jacobian_matches_autograd(filled_model: UDPO) -> None:
         assert th.allclose(jacobian[idx], expected, atol=1e-6)
 
 
+def test_linearised_log_prob_names_a_divergence() -> None:
+    """A NaN from a diverged network reaches the Cholesky factor as a clear error, not a bare LinAlgError."""
+    policy = UDPO("MultiInputPolicy", PointGoalEnv(), seed=0, entropy_term="linearised", **FAST_KWARGS).policy
+    obs = {key: th.as_tensor(space.sample()[None]) for key, space in PointGoalEnv().observation_space.spaces.items()}
+    distribution = policy.state_planner.distribution(obs)
+    planned = distribution.sample()
+    mean, log_std = policy.inverse_dynamics.distribution_params(distribution.state, planned)
+    policy.linearised_log_prob(distribution, planned, th.randn_like(mean), log_std)  # finite: no error
+    with pytest.raises(FloatingPointError, match="UDPO diverged"):
+        policy.linearised_log_prob(distribution, planned, th.randn_like(mean), th.full_like(log_std, float("nan")))
+
+
 def test_linearised_log_prob_is_the_policy_density_when_inverse_dynamics_is_linear() -> None:
     """With ``I``'s mean linear in ``s'`` and its spread independent of ``s'``, the pre-squash action of the decoupled policy
     is exactly Gaussian, ``N(mu_I(s, E[h]), J Sigma_h J^T + Sigma_I)``: the linearised estimate is then its density."""

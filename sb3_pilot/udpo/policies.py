@@ -608,7 +608,16 @@ class UDPOPolicy(BasePolicy):
         deviation = (spread @ planner_noise.unsqueeze(-1)).squeeze(-1) + action_std * noise.to(dtype)
         jitter = COVARIANCE_JITTER * th.eye(action_std.shape[-1], dtype=dtype, device=action_std.device)
         covariance = spread @ spread.transpose(1, 2) + th.diag_embed(action_std**2) + jitter
-        return multivariate_gaussian_log_prob(deviation, covariance).to(log_std.dtype)
+        try:
+            return multivariate_gaussian_log_prob(deviation, covariance).to(log_std.dtype)
+        except th.linalg.LinAlgError as error:  # positive-definite by construction unless an entry is NaN
+            raise FloatingPointError(
+                "UDPO diverged: the linearised entropy term's action covariance J diag(sigma_h^2) J^T + diag(sigma_I^2) "
+                "holds NaN, so the state planner or the inverse dynamics output NaN. On FetchPush this followed a "
+                "temperature runaway from SB3's initial temperature of 1 (zoo_runs/sources/fetchpush): watch "
+                "train/ent_coef and rollout/plan_error; a lower initial temperature (ent_coef='auto_0.001') avoided "
+                "it on the one seed tried."
+            ) from error
 
     def inverse_dynamics_jacobian(self, state: th.Tensor, next_state: th.Tensor) -> th.Tensor:
         """
