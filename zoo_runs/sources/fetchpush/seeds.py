@@ -14,11 +14,14 @@ Two measures of the same runs:
 - ``training``: the success of the sampled policy's training episodes per 10k steps from 50k (``monitor_<run>_seed_<s>.csv``,
   the zoo's ``0.monitor.csv``; about 200 episodes per point).
 
-Run from the repository root: ``python zoo_runs/sources/fetchpush/seeds.py`` (output: ``seeds.txt``).
+Run from the repository root: ``python zoo_runs/sources/fetchpush/seeds.py`` (output: ``seeds.txt``);
+``--udpo RUN --out FILE`` reports another UDPO variant's seeds against the same SAC + HER seeds, e.g.
+``--udpo udpo_linearised_lambda1e-4_alpha0.1_warmup50k --out seeds_alpha0.1.txt`` (initial temperature 0.1).
 """
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 import numpy as np
@@ -95,7 +98,11 @@ def report(title: str, udpo: list[dict], her: list[dict], interval: int) -> str:
 
 
 def main() -> None:
-    udpo, her = RUNS["UDPO+HER"], RUNS["SAC+HER"]
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--udpo", default=RUNS["UDPO+HER"], help="the UDPO run's file-name stem")
+    parser.add_argument("--out", default="seeds.txt", help="output file, in this folder")
+    args = parser.parse_args()
+    udpo, her = args.udpo, RUNS["SAC+HER"]
     measures = {
         "Deterministic evaluations, 25k grid to 150k": (evaluation_runs(udpo, GRID), evaluation_runs(her, GRID), GRID),
         "Training episodes, success per 10k steps from 60k to 150k": (training_runs(udpo), training_runs(her), WINDOW),
@@ -107,7 +114,7 @@ def main() -> None:
     }
     text = "\n".join(report(title, *runs) for title, runs in measures.items() if runs[0] and runs[1])
     print(text)
-    (HERE / "seeds.txt").write_text(text + "\n")
+    (HERE / args.out).write_text(text + "\n")
 
 
 if __name__ == "__main__":
