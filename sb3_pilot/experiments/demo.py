@@ -5,7 +5,7 @@ Planner transfer: the High-Dim-Action challenge (Fetch-Reach) at the named ``dem
 
 1. a source UDPO on Pilot/FetchReach-v0 (4-dim actions), through the RL Zoo, 8000 steps;
 2. its state planner transferred, frozen, into a UDPO on Pilot/FetchReachHighDim-v0 (8-dim actions through
-   ``h(a)``, 80% gravity), which then learns only its inverse dynamics and critics; the source's VecNormalize
+   ``h(a)``, 80% gravity), which then learns only its inverse dynamics; the source's VecNormalize
    statistics go with it (frozen), so the planner sees states scaled as it was trained; 4000 steps;
 3. SAC + HER trained from scratch on the same target, same steps;
 4. the comparison table (``run_challenge`` prints it), and ``success.png`` / ``plan_error.png`` under
