@@ -615,8 +615,8 @@ class UDPOPolicy(BasePolicy):
                 "UDPO diverged: the linearised entropy term's action covariance J diag(sigma_h^2) J^T + diag(sigma_I^2) "
                 "holds NaN, so the state planner or the inverse dynamics output NaN. On FetchPush this followed a "
                 "temperature runaway from SB3's initial temperature of 1 (zoo_runs/sources/fetchpush): watch "
-                "train/ent_coef and rollout/plan_error; a lower initial temperature (ent_coef='auto_0.001') avoided "
-                "it on the one seed tried."
+                "train/ent_coef and rollout/plan_error; an initial temperature of 0.1 (ent_coef='auto_0.1') avoided "
+                "it there on 4 of 4 seeds."
             ) from error
 
     def inverse_dynamics_jacobian(self, state: th.Tensor, next_state: th.Tensor) -> th.Tensor:
