@@ -34,8 +34,9 @@ def method_name(row: dict) -> str:
         "noise_std",
         "inverse_dynamics_interval",
         "inverse_dynamics_gradient_steps",
+        "detach_log_std",
     )
-    options = "".join(f", {key} {row[key]}" for key in keys if key in row)
+    options = "".join(f", {key} {row[key]}" for key in keys if row.get(key, False) is not False)
     return f"UDPO lambda {row['planner_coef']:g}{options}"
 
 

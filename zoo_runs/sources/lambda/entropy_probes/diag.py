@@ -1,6 +1,7 @@
 """Seed-0 probe of the walled maze every 2k steps (policy spread, temperature, planned step, I's std, cross-wall
 success). Usage (repository root): OMP_NUM_THREADS=1 python zoo_runs/sources/lambda/entropy_probes/diag.py udpo 1e-3 0 10000
-['{"inverse_dynamics_gradient_steps": 200}'] (or: sac 0 0 12000); LINPI=1 loads linpi_patch.py. Outputs: diag_*.txt."""
+['{"inverse_dynamics_gradient_steps": 200}'] (or: sac 0 0 12000); LINPI=1 loads linpi_patch.py,
+DETACH=1 detach_probe.py's variant. Outputs: diag_*.txt."""
 
 import json
 import sys
@@ -16,6 +17,12 @@ from stable_baselines3.common.monitor import Monitor
 
 if os.environ.get("LINPI"):
     import linpi_patch  # noqa
+if os.environ.get("DETACH"):  # detach_probe.py's variant: no gradient to the plan through log sigma_I
+    from detach_probe import detached_log_prob
+
+    from sb3_pilot.udpo import policies
+
+    policies.reparameterised_log_prob = detached_log_prob
 from sb3_pilot import UDPO
 
 sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
