@@ -16,7 +16,8 @@ Two measures of the same runs:
 
 Run from the repository root: ``python zoo_runs/sources/fetchpush/seeds.py`` (output: ``seeds.txt``);
 ``--udpo RUN --out FILE`` reports another UDPO variant's seeds against the same SAC + HER seeds, e.g.
-``--udpo udpo_linearised_lambda1e-4_alpha0.1_warmup50k --out seeds_alpha0.1.txt`` (initial temperature 0.1).
+``--udpo udpo_linearised_lambda1e-4_alpha0.1_warmup50k --out seeds_alpha0.1.txt`` (initial temperature 0.1);
+``--seeds 0 1 2 3`` keeps those seeds of both methods (the tables of the sixth and seventh sittings, 4 against 4).
 """
 
 from __future__ import annotations
@@ -101,6 +102,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--udpo", default=RUNS["UDPO+HER"], help="the UDPO run's file-name stem")
     parser.add_argument("--out", default="seeds.txt", help="output file, in this folder")
+    parser.add_argument("--seeds", type=int, nargs="+", help="only these seeds of both methods (default: every seed here)")
     args = parser.parse_args()
     udpo, her = args.udpo, RUNS["SAC+HER"]
     measures = {
@@ -112,6 +114,15 @@ def main() -> None:
             GRID // 2,
         ),
     }
+    if args.seeds is not None:  # e.g. the tables of an earlier sitting, before more seeds came
+        measures = {
+            title: (
+                [run for run in udpo_runs if run["seed"] in args.seeds],
+                [run for run in her_runs if run["seed"] in args.seeds],
+                interval,
+            )
+            for title, (udpo_runs, her_runs, interval) in measures.items()
+        }
     text = "\n".join(report(title, *runs) for title, runs in measures.items() if runs[0] and runs[1])
     print(text)
     (HERE / args.out).write_text(text + "\n")

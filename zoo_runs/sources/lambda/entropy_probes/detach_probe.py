@@ -32,10 +32,15 @@ def detached_linearised_log_prob(self, distribution, planned_next_state, noise, 
     return LINEARISED_LOG_PROB(self, distribution, planned_next_state, noise, log_std.detach())
 
 
+def detach_log_std() -> None:
+    """Patch both entropy terms so that no gradient reaches the plan through ``log sigma_I``."""
+    policies.reparameterised_log_prob = detached_log_prob
+    policies.UDPOPolicy.linearised_log_prob = detached_linearised_log_prob
+
+
 if __name__ == "__main__":
     if os.environ.get("DETACH"):
-        policies.reparameterised_log_prob = detached_log_prob
-        policies.UDPOPolicy.linearised_log_prob = detached_linearised_log_prob
+        detach_log_std()
     coef, seeds = float(sys.argv[1]), [int(seed) for seed in sys.argv[2:]]
     options = {key: wall_maze.DEFAULTS[key] for key in ("plan_target", "ent_coef", "noise_std")}
     options["entropy_term"] = os.environ.get("ENTROPY_TERM", wall_maze.DEFAULTS["entropy_term"])

@@ -18,11 +18,9 @@ from stable_baselines3.common.monitor import Monitor
 if os.environ.get("LINPI"):
     import linpi_patch  # noqa
 if os.environ.get("DETACH"):  # detach_probe.py's variant: no gradient to the plan through log sigma_I
-    from detach_probe import detached_log_prob
+    from detach_probe import detach_log_std
 
-    from sb3_pilot.udpo import policies
-
-    policies.reparameterised_log_prob = detached_log_prob
+    detach_log_std()
 from sb3_pilot import UDPO
 
 sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1]))
