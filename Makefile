@@ -15,14 +15,14 @@ demo: $(VENV)/.installed
 	$(PY) -m sb3_pilot.experiments.demo
 
 test: $(VENV)/.installed
-	$(VENV)/bin/ruff check sb3_pilot tests
-	$(VENV)/bin/ruff format --check sb3_pilot tests
+	$(VENV)/bin/ruff check sb3_pilot benchmarks tests
+	$(VENV)/bin/ruff format --check sb3_pilot benchmarks tests
 	$(PY) -m pytest -n 2 -q tests
 	$(SPHINXBUILD)
 
 lint: $(VENV)/.installed
-	$(VENV)/bin/ruff check sb3_pilot tests
-	$(VENV)/bin/ruff format --check sb3_pilot tests
+	$(VENV)/bin/ruff check sb3_pilot benchmarks tests
+	$(VENV)/bin/ruff format --check sb3_pilot benchmarks tests
 
 # the docs (Sphinx, Read-the-Docs theme), warnings as errors; open docs/_build/html/index.html
 docs: $(VENV)/.installed

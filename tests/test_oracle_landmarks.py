@@ -2,9 +2,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from benchmarks.oracle_landmarks import OracleBonusWrapper, UMazeOraclePlanner
 from sb3_pilot.envs import register_envs
 from sb3_pilot.envs.maze import umaze_is_free
-from sb3_pilot.experiments.benchmarks.oracle_landmarks import OracleBonusWrapper, UMazeOraclePlanner
 
 
 def test_oracle_landmarks_go_around_the_inner_wall():

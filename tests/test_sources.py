@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from sb3_pilot.experiments.benchmarks.sources import (
+from benchmarks.sources import (
     SAC_HER,
     SOURCE_TASKS,
     UDPO_HER,
