@@ -3,7 +3,7 @@ sb3-pilot: PILoT (Planning Immediate Landmarks of Targets) for Stable-Baselines3
 
 The library follows the paper's three stages: :mod:`sb3_pilot.udpo` (pre-training), :mod:`sb3_pilot.distill`
 (distillation) and :mod:`sb3_pilot.transfer` (transfer), on :mod:`sb3_pilot.common`; :mod:`sb3_pilot.envs` holds the
-paper's tasks. :mod:`sb3_pilot.experiments` (the RL-Zoo entry, challenges, benchmarks, plots, demo) builds on the
+paper's tasks. :mod:`sb3_pilot.experiments` (the RL-Zoo entry, challenges, plots, statistics, demo) builds on the
 library and is never imported by it.
 """
 

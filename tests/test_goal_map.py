@@ -31,7 +31,9 @@ def point_maze_planner():
     )
     model.learn(200)
     env = gym.make(SOURCE, max_episode_steps=50)
-    return distill_goal_planner(model, n_samples=400, gradient_steps=50, batch_size=32, net_arch=[16], env=env)
+    # 200 steps teach no goal: the planner tests the map's plumbing, not its landmarks
+    kwargs = {"n_samples": 400, "gradient_steps": 50, "batch_size": 32, "net_arch": [16], "allow_unsuccessful_teacher": True}
+    return distill_goal_planner(model, **kwargs, env=env)
 
 
 @pytest.fixture

@@ -165,3 +165,18 @@ def test_lean_her_samples_are_sb3_her_samples(copy_info_dict: bool, buffer_size:
         elif expected is not None:
             th.testing.assert_close(actual, expected, msg=name)
     assert LeanSAC("MultiInputPolicy", PointGoalEnv(), **small(**HER)).replay_buffer_class is LeanHerReplayBuffer
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"buffer_size": 0}, "buffer_size must be >= 1"),
+        ({"buffer_size": -10}, "buffer_size must be >= 1"),
+        ({"batch_size": 0}, "batch_size must be >= 1"),
+        ({"batch_size": -3}, "batch_size must be >= 1"),
+    ],
+)
+def test_lean_sac_refuses_empty_buffers_and_batches(kwargs: dict, message: str) -> None:
+    """SB3 accepts buffer_size=0 and fails on batch_size=0 at its first sample: LeanSAC refuses both by name."""
+    with pytest.raises(ValueError, match=message):
+        LeanSAC("MultiInputPolicy", PointGoalEnv(), **kwargs)

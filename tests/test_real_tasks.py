@@ -58,6 +58,7 @@ def test_udpo_runs_where_sac_runs(env_id: str, max_episode_steps: int, steps: in
     if goal_env:  # the planner's goal slice is the achieved goal's coordinates
         assert loaded.policy.goal_slice == slice(flat_state - obs["achieved_goal"].size, flat_state)
         distill = {"n_samples": 200, "gradient_steps": 20, "batch_size": 32, "net_arch": [16]}
+        distill["allow_unsuccessful_teacher"] = True  # a few hundred steps need not reach a goal: plumbing is tested
         for labels in ("rollouts", "planned"):  # rollouts in the model's own (float64) env, plans from its buffer
             planner = distill_goal_planner(model, labels=labels, **distill)
             landmark = planner.predict(obs["achieved_goal"], obs["desired_goal"])

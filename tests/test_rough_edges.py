@@ -39,7 +39,8 @@ def test_distilling_an_untrained_teacher() -> None:
     teacher = UDPO("MultiInputPolicy", PointGoalEnv(), replay_buffer_class=HerReplayBuffer, learning_starts=100)
     teacher.learn(50)
     with pytest.warns(UserWarning, match="no gradient step"):
-        planner = distill_goal_planner(teacher, n_samples=300, gradient_steps=2, batch_size=32, net_arch=[8])
+        kwargs = {"n_samples": 300, "gradient_steps": 2, "batch_size": 32, "net_arch": [8]}
+        planner = distill_goal_planner(teacher, **kwargs, allow_unsuccessful_teacher=True)
     assert planner.metadata["teacher_num_timesteps"] == 50
 
 

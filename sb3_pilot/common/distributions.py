@@ -12,18 +12,6 @@ LOG_STD_MIN = -20
 _HALF_LOG_2PI = 0.5 * math.log(2 * math.pi)
 
 
-def gaussian_nll_terms(value: th.Tensor, mean: th.Tensor, log_std: th.Tensor) -> th.Tensor:
-    """
-    Negative log-density of a diagonal Gaussian, per dimension (not summed).
-
-    :param value: points, shape (..., dim)
-    :param mean: means, same shape
-    :param log_std: log standard deviations, same shape
-    :return: per-dimension negative log-densities, shape (..., dim)
-    """
-    return 0.5 * ((value - mean) * th.exp(-log_std)) ** 2 + log_std + _HALF_LOG_2PI
-
-
 def gaussian_log_prob(value: th.Tensor, mean: th.Tensor, log_std: th.Tensor) -> th.Tensor:
     """
     Log-density of a diagonal Gaussian, summed over the last dimension.
@@ -33,27 +21,7 @@ def gaussian_log_prob(value: th.Tensor, mean: th.Tensor, log_std: th.Tensor) -> 
     :param log_std: log standard deviations, same shape
     :return: log-densities, shape (...)
     """
-    return -gaussian_nll_terms(value, mean, log_std).sum(dim=-1)
-
-
-def beta_gaussian_nll(value: th.Tensor, mean: th.Tensor, log_std: th.Tensor, beta: float) -> th.Tensor:
-    """
-    Negative log-density of a diagonal Gaussian with each dimension's term weighted by its variance (held fixed) to the
-    power ``beta``, summed over the last dimension: the beta-NLL of Seitzer et al., "On the Pitfalls of Heteroscedastic
-    Uncertainty Estimation with Probabilistic Neural Networks" (ICLR 2022). ``beta = 0`` is the plain negative
-    log-density, whose gradient on the mean grows as ``1 / sigma^2``; ``beta = 1`` gives the mean the gradient of half
-    a squared error, whatever ``sigma``.
-
-    :param value: points, shape (..., dim)
-    :param mean: means, same shape
-    :param log_std: log standard deviations, same shape
-    :param beta: exponent of the variance weights, in [0, 1]
-    :return: weighted negative log-densities, shape (...)
-    """
-    nll = gaussian_nll_terms(value, mean, log_std)
-    if beta:
-        nll = nll * th.exp(2 * beta * log_std.detach())
-    return nll.sum(dim=-1)
+    return -(0.5 * ((value - mean) * th.exp(-log_std)) ** 2 + log_std + _HALF_LOG_2PI).sum(dim=-1)
 
 
 def gaussian_expected_nll(mean: th.Tensor, std: th.Tensor, model_mean: th.Tensor, model_log_std: th.Tensor) -> th.Tensor:

@@ -11,13 +11,26 @@ import torch as th
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.policies import BaseModel
-from stable_baselines3.common.save_util import load_from_zip_file
-from stable_baselines3.common.type_aliases import PyTorchObs
+from stable_baselines3.common.save_util import load_from_zip_file, recursive_getattr
+from stable_baselines3.common.type_aliases import PyTorchObs, ReplayBufferSamples
 from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
 from torch import nn
 
 from sb3_pilot.common.buffers import LeanHerReplayBuffer
 from sb3_pilot.common.critics import EnsembleCritic, stack_sb3_critic_parameters
+from sb3_pilot.common.utils import check_number
+
+
+def check_replay_sizes(buffer_size: int, batch_size: int) -> None:
+    """
+    Refuse a replay buffer or a minibatch that could hold no transition, before any work, with a ``ValueError`` naming
+    the argument (SB3 accepts ``buffer_size=0`` and fails on ``batch_size=0`` when it first samples).
+
+    :param buffer_size: size of the replay buffer
+    :param batch_size: minibatch size of each gradient step
+    """
+    check_number("buffer_size", buffer_size, minimum=1, integer=True)
+    check_number("batch_size", batch_size, minimum=1, integer=True)
 
 
 def soft_update(params: list[th.Tensor], target_params: list[th.Tensor], tau: float) -> None:
@@ -113,12 +126,16 @@ class LeanSACSteps:
     ent_coef_tensor: th.Tensor
     target_entropy: float
     tau: float
+    gamma: float
     target_update_interval: int
     batch_norm_stats: list[th.Tensor]
     batch_norm_stats_target: list[th.Tensor]
     _critic_parameters: list[th.Tensor]
     _critic_target_parameters: list[th.Tensor]
     replay_buffer_class: type[ReplayBuffer] | None
+    device: th.device
+    #: the gradient step captured as CUDA graphs (:mod:`sb3_pilot.common.cuda_graph`), where an algorithm opts in
+    _cuda_graph_update: Any = None
 
     def _use_lean_her(self) -> None:
         """Sample HER batches with :class:`~sb3_pilot.common.buffers.LeanHerReplayBuffer` where SB3's is asked for."""
@@ -164,6 +181,42 @@ class LeanSACSteps:
         critic_loss.backward()
         self.critic.optimizer.step()
 
+    def _target_q_values(
+        self, replay_data: ReplayBufferSamples, next_actions: th.Tensor, next_log_prob: th.Tensor, ent_coef: th.Tensor
+    ) -> th.Tensor:
+        """
+        SAC's TD target ``y = r + gamma (1 - d) (min_i Q'_i(s', a') - alpha log pi(a' | s'))``, without gradients.
+
+        :param replay_data: the sampled batch (its ``discounts`` replace ``gamma`` where the buffer sets them)
+        :param next_actions: the policy's actions ``a'`` at the next observations ``s'``
+        :param next_log_prob: their ``log pi(a' | s')``, shape ``(batch,)`` or ``(batch, 1)``
+        :param ent_coef: ``alpha``
+        :return: the targets, shape ``(batch, 1)``
+        """
+        discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
+        with th.no_grad():
+            next_q_values = q_values(self.critic_target, replay_data.next_observations, next_actions).amin(dim=0)
+            next_q_values = next_q_values - ent_coef * next_log_prob.reshape(-1, 1)
+            return replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_values
+
+    def _actor_loss(
+        self, observations: PyTorchObs, actions: th.Tensor, log_prob: th.Tensor, ent_coef: th.Tensor, losses: LossRecorder
+    ) -> th.Tensor:
+        """
+        SAC's actor loss ``E[alpha log pi(a | s) - min_i Q_i(s, a)]`` at the policy's reparameterised actions.
+
+        :param observations: observations ``s`` of the batch
+        :param actions: the policy's actions ``a`` there (with their graph)
+        :param log_prob: their ``log pi(a | s)``, shape ``(batch, 1)``
+        :param ent_coef: ``alpha``
+        :param losses: where the loss is logged (``actor_loss``)
+        :return: the loss, a scalar tensor
+        """
+        min_qf_pi = q_values(self.critic, observations, actions).amin(dim=0)
+        actor_loss = (ent_coef * log_prob - min_qf_pi).mean()
+        losses.add("actor_loss", actor_loss)
+        return actor_loss
+
     def set_parameters(
         self, load_path_or_dict: str | dict[str, Any], exact_match: bool = True, device: th.device | str = "auto"
     ) -> None:
@@ -174,6 +227,21 @@ class LeanSACSteps:
         if isinstance(self.critic, EnsembleCritic):
             stack_sb3_critic_parameters(params, self.critic.n_critics)
         super().set_parameters(params, exact_match=exact_match, device=device)  # type: ignore[misc]
+        # the optimizers' state was replaced: a captured update (cuda_graphs) captures anew; a model saved from captured
+        # steps has capturable optimizers, which have no step on CPU
+        if self._cuda_graph_update is not None:
+            self._cuda_graph_update.invalidate()
+        if self.device.type == "cpu":
+            for name in self._get_torch_save_params()[0]:  # type: ignore[attr-defined]
+                optimizer = recursive_getattr(self, name)
+                if isinstance(optimizer, th.optim.Optimizer):
+                    for group in optimizer.param_groups:
+                        group["capturable"] = False
+
+    def dump_logs(self) -> None:
+        if self._cuda_graph_update is not None:  # its losses, summed on the device since the last dump
+            self._cuda_graph_update.losses.record(self.logger)  # type: ignore[attr-defined]
+        super().dump_logs()  # type: ignore[misc]
 
     def _excluded_save_params(self) -> list[str]:
         return [*super()._excluded_save_params(), "_critic_parameters", "_critic_target_parameters"]  # type: ignore[misc]

@@ -1,14 +1,17 @@
-"""Distillation stage of PILoT (paper section 3.2, eq. "distill"): from UDPO's state planner to a goal planner."""
+"""
+Distillation stage of PILoT (paper section 3.2, eq. "distill"): from a goal-reaching teacher (UDPO's state planner, or
+any SB3 agent's steps) to a goal planner.
+"""
 
 from __future__ import annotations
 
+import os
 import sys
-import warnings
 from typing import NamedTuple
 
 import numpy as np
 import torch as th
-from gymnasium import spaces
+from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.buffers import DictReplayBuffer
 from stable_baselines3.common.logger import HumanOutputFormat, Logger
 from stable_baselines3.common.type_aliases import GymEnv
@@ -18,7 +21,8 @@ from tqdm.auto import tqdm
 
 from sb3_pilot.common.distributions import gaussian_expected_nll
 from sb3_pilot.common.utils import check_number, task_id
-from sb3_pilot.distill.goal_planner import GoalPlanner
+from sb3_pilot.distill.goal_planner import GoalPlanner, env_goal_space
+from sb3_pilot.distill.teacher import DETERMINISTIC_TEACHER_NOISE, check_teacher, is_deterministic, load_teacher
 from sb3_pilot.udpo import UDPO
 
 
@@ -36,33 +40,18 @@ def goal_scaling(vec_normalize: VecNormalize | None, goal_dim: int) -> tuple[np.
     return np.ones(goal_dim, dtype=np.float32), np.zeros(goal_dim, dtype=np.float32)
 
 
-#: What the distillation labels are: real next goals of the teacher's episodes (:func:`rollout_pairs`), or the
-#: teacher's model of them (:func:`teacher_goal_distribution`)
-LABELS = ("rollouts", "reached", "planned")
-
-
 def teacher_goal_distribution(
-    model: UDPO, observations: dict[str, np.ndarray], chunk_size: int = 4096, labels: str = "planned"
+    model: UDPO, observations: dict[str, np.ndarray], chunk_size: int = 4096
 ) -> tuple[np.ndarray, np.ndarray]:
     """
-    The teacher's next goal from states ``s`` for targets ``g_target``, in raw coordinates:
-
-    * ``labels="planned"``: the goal slice ``phi(s')`` of the planned next state ``s' ~ h(. | s, g_target)``;
-    * ``labels="reached"``: the goal slice of the next state the teacher's deterministic action
-      ``a = I(s, E[h(. | s, g_target)])`` reaches, as its forward dynamics model ``T(s' | s, a)`` predicts it
-      (needs ``plan_target="policy"``): what the teacher's plan actually leads to, an immediate landmark.
+    The teacher's planned next goal from states ``s`` for targets ``g_target``, in raw coordinates: the goal slice
+    ``phi(s')`` of the planned next state ``s' ~ h(. | s, g_target)`` (``labels="planned"``).
 
     :param model: the teacher (a trained ``UDPO`` on a Dict goal env)
     :param observations: raw observations (as the replay buffer stores them), batched
     :param chunk_size: forward pass size
-    :param labels: ``"reached"`` or ``"planned"``
     :return: mean and standard deviation of the teacher's (Gaussian) next goal, shape (n, goal_dim) each
     """
-    if labels not in ("reached", "planned"):
-        raise ValueError(f'labels must be "reached" or "planned" here, got {labels!r}.')
-    forward_dynamics = model.policy.forward_dynamics
-    if labels == "reached" and forward_dynamics is None:
-        raise ValueError('labels="reached" needs a teacher trained with plan_target="policy" (its forward dynamics).')
     policy = model.policy
     goal_slice = policy.goal_slice
     assert goal_slice is not None
@@ -77,45 +66,17 @@ def teacher_goal_distribution(
             chunk = {key: value[start : start + chunk_size] for key, value in seen.items()}  # type: ignore[union-attr]
             obs_tensor, _ = policy.obs_to_tensor(chunk)
             distribution = policy.state_planner.distribution(obs_tensor)
-            mean, log_std = distribution.mean, distribution.delta_log_std
-            if labels == "reached":
-                assert forward_dynamics is not None
-                actions, _ = policy.inverse_dynamics(distribution.state, mean, deterministic=True)
-                delta_mean, log_std = forward_dynamics.distribution_params(distribution.state, actions)
-                mean = distribution.state + delta_mean
-            means.append(mean[:, goal_slice].cpu().numpy())
-            stds.append(th.exp(log_std)[:, goal_slice].cpu().numpy())
+            means.append(distribution.mean[:, goal_slice].cpu().numpy())
+            stds.append(th.exp(distribution.delta_log_std)[:, goal_slice].cpu().numpy())
     return np.concatenate(means) * scale + offset, np.concatenate(stds) * scale
-
-
-def _check_teacher(model: UDPO) -> None:
-    if not isinstance(model.observation_space, spaces.Dict) or model.policy.goal_slice is None:
-        raise ValueError(
-            "distill_goal_planner needs a UDPO trained on a goal env (Dict observation with 'achieved_goal' and "
-            f"'desired_goal'), got observation space {model.observation_space}."
-        )
-    if "desired_goal" not in model.observation_space.spaces:
-        raise ValueError("distill_goal_planner needs 'desired_goal' in the observation: it is the target goal g_target.")
-    if model.num_timesteps == 0:
-        raise ValueError(
-            "distill_goal_planner needs a trained teacher, but the model has taken 0 env steps (num_timesteps=0): "
-            "call model.learn(...) first, or load a trained model."
-        )
-    if model._n_updates == 0:
-        warnings.warn(
-            f"The teacher has taken {model.num_timesteps} env steps but no gradient step (learning_starts="
-            f"{model.learning_starts}): its state planner and inverse dynamics are still their random initialisation, "
-            "and so will the distilled planner's landmarks be.",
-            stacklevel=3,
-        )
 
 
 def _teacher_buffer(model: UDPO) -> DictReplayBuffer:
     buffer = model.replay_buffer
     if not isinstance(buffer, DictReplayBuffer) or (buffer.pos == 0 and not buffer.full):
         raise ValueError(
-            "labels 'planned' and 'reached' sample states and target goals from the model's replay buffer, which is "
-            "empty (a loaded model has none: train it, or call model.load_replay_buffer(path) first)."
+            "labels='planned' samples states and target goals from the model's replay buffer, which is empty (a loaded "
+            "model has none: train it, or call model.load_replay_buffer(path) first)."
         )
     return buffer
 
@@ -164,36 +125,64 @@ def sample_buffer_pairs(buffer: DictReplayBuffer, n_samples: int, rng: np.random
     :return: batched observations whose ``desired_goal`` is the drawn target goal
     """
     n_stored = (buffer.buffer_size if buffer.full else buffer.pos) * buffer.n_envs
-    stored = {key: value[: n_stored // buffer.n_envs].reshape(n_stored, -1) for key, value in buffer.observations.items()}
+    # a device-resident buffer (``storage="device"``) holds tensors: read them as host arrays
+    stored = {
+        key: np.asarray(
+            value[: n_stored // buffer.n_envs].cpu() if th.is_tensor(value) else value[: n_stored // buffer.n_envs]
+        ).reshape(n_stored, -1)
+        for key, value in buffer.observations.items()
+    }
     state_idx, goal_idx = rng.integers(n_stored, size=n_samples), rng.integers(n_stored, size=n_samples)
     observations = {key: value[state_idx] for key, value in stored.items()}
     observations["desired_goal"] = stored["desired_goal"][goal_idx]
     return observations
 
 
-def rollout_pairs(
-    model: UDPO, env: GymEnv, n_samples: int, seed: int, deterministic: bool = False
-) -> tuple[dict[str, np.ndarray], np.ndarray, float]:
+class Rollouts(NamedTuple):
     """
-    Run the teacher's policy ``pi(a | s, g_target) = I(a | s, h(s' | s, g_target))`` in ``env`` for ``n_samples`` steps
-    and record, at every step, the pair ``(g, g_target)`` and the goal ``phi(s_{t+1})`` the step actually reached:
-    what the teacher's plan led to, in raw goal coordinates.
+    The teacher's steps (:func:`rollout_pairs`), in raw coordinates.
 
-    :param model: the teacher
+    :param observations: the observations ``s`` (with their ``desired_goal``, the target ``g_target``), batched
+    :param next_goals: the achieved goal ``phi(s_{t+1})`` each step reached
+    :param success: the success rate of the episodes that ended (NaN: none ended, or the env reports no success)
+    :param goal_steps: the number of steps whose ``info`` reports the goal reached (None: the env reports no success)
+    """
+
+    observations: dict[str, np.ndarray]
+    next_goals: np.ndarray
+    success: float
+    goal_steps: int | None
+
+
+def _reported_success(info: dict) -> float:
+    """SB3's ``is_success``, else gymnasium-robotics' mazes' ``success``, else NaN (unknown)."""
+    return float(info.get("is_success", info.get("success", np.nan)))
+
+
+def rollout_pairs(
+    model: BaseAlgorithm, env: GymEnv, n_samples: int, seed: int, deterministic: bool = False, noise: float = 0.0
+) -> Rollouts:
+    """
+    Run the teacher's policy ``pi(a | s, g_target)`` in ``env`` for ``n_samples`` steps and record, at every step, the
+    pair ``(g, g_target)`` and the goal ``phi(s_{t+1})`` the step actually reached, in raw goal coordinates.
+
+    :param model: the teacher, any SB3 agent with continuous actions
     :param env: the env the teacher acts in (observations as the policy sees them: with its ``VecNormalize``, if
         any, whose statistics are left unchanged)
     :param n_samples: number of steps (over all sub-environments)
-    :param seed: seed of the env's resets and of the sampled actions
-    :param deterministic: act with the mean plan's action ``I(s, E[h])``; False samples actions from ``pi``
-    :return: raw observations ``s`` (with their ``desired_goal``), the raw achieved goals one step later, and the
-        success rate of the episodes that ended
+    :param seed: seed of the env's resets, of the sampled actions and of the noise
+    :param deterministic: act with the policy's deterministic action (UDPO: ``I(s, E[h])``); False samples actions
+    :param noise: standard deviation of Gaussian noise added to the normalised action (in ``[-1, 1]``, clipped there)
+    :return: the steps (:class:`Rollouts`)
     """
     venv = env if isinstance(env, VecEnv) else model._wrap_env(env)
     vec_normalize = unwrap_vec_normalize(venv)
     was_training = vec_normalize is not None and vec_normalize.training
+    rng = np.random.default_rng(seed)
     seen: list[dict[str, np.ndarray]] = []  # observations as the policy sees them, and the goals reached
     reached_goals: list[np.ndarray] = []
     successes: list[float] = []
+    step_successes: list[float] = []
     try:
         if vec_normalize is not None:
             vec_normalize.training = False
@@ -204,13 +193,16 @@ def rollout_pairs(
             th.manual_seed(seed)
             for _ in range(-(-n_samples // venv.num_envs)):
                 actions, _ = model.predict(obs, deterministic=deterministic)
+                if noise > 0:
+                    noisy = model.policy.scale_action(actions) + noise * rng.standard_normal(actions.shape)
+                    actions = model.policy.unscale_action(np.clip(noisy, -1.0, 1.0))
                 next_obs, _, dones, infos = venv.step(actions)
                 assert isinstance(next_obs, dict)
                 reached = next_obs["achieved_goal"].copy()
+                step_successes.extend(_reported_success(info) for info in infos)
                 for index in np.flatnonzero(dones):  # the env reset: the real next state is the terminal observation
                     reached[index] = infos[index]["terminal_observation"]["achieved_goal"]
-                    # SB3's key, else gymnasium-robotics' mazes' ("success"), else unknown
-                    successes.append(float(infos[index].get("is_success", infos[index].get("success", np.nan))))
+                    successes.append(_reported_success(infos[index]))
                 seen.append(obs)
                 reached_goals.append(reached)
                 obs = next_obs
@@ -219,50 +211,67 @@ def rollout_pairs(
             vec_normalize.training = was_training
     if venv is model.get_env():  # its episodes were cut: the next learn() starts new ones
         model._last_obs = None  # type: ignore[assignment]
-        if isinstance(model.replay_buffer, HerReplayBuffer):
-            model.replay_buffer.truncate_last_trajectory()
+        if isinstance(getattr(model, "replay_buffer", None), HerReplayBuffer):
+            model.replay_buffer.truncate_last_trajectory()  # type: ignore[attr-defined]
     observations = {key: np.concatenate([obs[key] for obs in seen])[:n_samples] for key in seen[0]}
     next_goals = np.concatenate(reached_goals)[:n_samples]
     if vec_normalize is not None:  # back to raw coordinates, once
         next_goals = vec_normalize.unnormalize_obs({**observations, "achieved_goal": next_goals})["achieved_goal"]
         observations = vec_normalize.unnormalize_obs(observations)  # type: ignore[assignment]
     known = [success for success in successes if not np.isnan(success)]
-    return observations, next_goals, float(np.mean(known)) if known else np.nan
+    known_steps = [success for success in step_successes if not np.isnan(success)]
+    return Rollouts(
+        observations,
+        next_goals,
+        float(np.mean(known)) if known else np.nan,
+        int(np.sum(known_steps)) if known_steps else None,
+    )
 
 
 def distillation_data(
-    model: UDPO,
+    model: BaseAlgorithm,
     n_samples: int,
     seed: int,
     labels: str = "rollouts",
     env: GymEnv | None = None,
     deterministic: bool = False,
+    rollout_noise: float = 0.0,
+    allow_unsuccessful_teacher: bool = False,
 ) -> tuple[DistillationData, dict[str, float]]:
     """
     ``n_samples`` pairs ``(g, g_target)`` labelled with the teacher's next goal: real steps of its episodes in
-    ``env`` (``labels="rollouts"``, :func:`rollout_pairs`, a label of standard deviation 0), or drawn from its buffer
-    (:func:`sample_buffer_pairs`) and labelled with its next-goal distribution (:func:`teacher_goal_distribution`).
+    ``env`` (``labels="rollouts"``, :func:`rollout_pairs`, a label of standard deviation 0), or drawn from a UDPO
+    teacher's buffer (:func:`sample_buffer_pairs`) and labelled with its planned next goal
+    (:func:`teacher_goal_distribution`, ``labels="planned"``).
 
-    :param model: the teacher
+    :param model: the teacher (checked by :func:`~sb3_pilot.distill.teacher.check_teacher`)
     :param n_samples: number of pairs
     :param seed: seed of the draw (or of the env's resets)
-    :param labels: ``"rollouts"``, ``"reached"`` or ``"planned"``
+    :param labels: ``"rollouts"`` or ``"planned"``
     :param env: the env of the rollouts (default: the model's)
     :param deterministic: the rollouts' actions (see :func:`rollout_pairs`)
+    :param rollout_noise: the rollouts' action noise (see :func:`rollout_pairs`)
+    :param allow_unsuccessful_teacher: go on when the rollouts reach no goal (else a ``ValueError``)
     :return: the pairs, and facts about them for the planner's metadata
     """
-    if labels not in LABELS:
-        raise ValueError(f"labels must be one of {LABELS}, got {labels!r}.")
     facts: dict[str, float] = {}
     if labels == "rollouts":
         env = model.get_env() if env is None else env
-        if env is None:
-            raise ValueError('labels="rollouts" runs the teacher in an env: pass env=, or load the model with one.')
-        observations, teacher_mean, facts["rollout_success"] = rollout_pairs(model, env, n_samples, seed, deterministic)
+        assert env is not None, "check_teacher refuses a teacher without env"
+        rollouts = rollout_pairs(model, env, n_samples, seed, deterministic, rollout_noise)
+        if rollouts.goal_steps == 0 and not allow_unsuccessful_teacher:
+            raise ValueError(
+                f"The {type(model).__name__} teacher's rollouts reached no goal in {n_samples} steps: a planner "
+                "distilled from them would plan the steps of an agent that does not reach its goals. Train the "
+                "teacher longer, or check the env it acts in (its VecNormalize statistics, env kwargs and wrappers), "
+                "or pass allow_unsuccessful_teacher=True to distil it anyway."
+            )
+        observations, teacher_mean, facts["rollout_success"] = rollouts.observations, rollouts.next_goals, rollouts.success
         teacher_std = np.zeros_like(teacher_mean)
     else:
+        assert isinstance(model, UDPO), "check_teacher refuses planned labels of other agents"
         observations = sample_buffer_pairs(_teacher_buffer(model), n_samples, np.random.default_rng(seed))
-        teacher_mean, teacher_std = teacher_goal_distribution(model, observations, labels=labels)
+        teacher_mean, teacher_std = teacher_goal_distribution(model, observations)
     arrays = (observations["achieved_goal"], observations["desired_goal"], teacher_mean, teacher_std)
     data = DistillationData(*(th.as_tensor(array, device=model.device, dtype=th.float32) for array in arrays))
     return data, facts
@@ -337,7 +346,7 @@ def fit_goal_planner(
 
 
 def distill_goal_planner(
-    model: UDPO,
+    model: BaseAlgorithm | str | os.PathLike,
     n_samples: int = 50_000,
     gradient_steps: int = 5_000,
     batch_size: int = 256,
@@ -354,42 +363,36 @@ def distill_goal_planner(
     env: GymEnv | None = None,
     deterministic: bool = False,
     support_size: int = 20_000,
+    rollout_noise: float | None = None,
+    allow_unsuccessful_teacher: bool = False,
 ) -> GoalPlanner:
     """
-    Distil a trained UDPO's state planner ``h(s' | s, g_target)`` (the teacher) into a goal planner
-    ``f(g' | g, g_target)`` (the student) by maximum likelihood, paper eq. "distill".
+    Distil a goal-reaching teacher into a goal planner ``f(g' | g, g_target)`` (the student) by maximum likelihood,
+    paper eq. "distill". The teacher is any SB3 agent with continuous actions trained on a goal env (SAC, TD3, DDPG,
+    sb3-contrib's TQC, :class:`~sb3_pilot.sac.LeanSAC`, :class:`~sb3_pilot.UDPO`, a model of an RL-Zoo run), or the
+    path of its file (:func:`~sb3_pilot.distill.teacher.load_teacher`).
 
-    Data (:func:`distillation_data`), by default (``labels="rollouts"``): the teacher's policy
-    ``pi(a | s, g_target) = I(a | s, h(s' | s, g_target))`` runs ``n_samples`` steps in ``env`` towards the env's own
+    By default (``labels="rollouts"``) the teacher's policy runs ``n_samples`` steps in ``env`` towards the env's own
     goals, and each step gives a pair ``(g, g_target)`` labelled with the goal ``phi(s_{t+1})`` that step really
-    reached. The student therefore learns where the teacher's plan *leads* in one step, not the plan itself: **a
-    landmark of the distilled planner is an immediate one, the next goal the source agent reached in one step from
-    ``g`` on its way to ``g_target``**, of a real step's length whatever the balance of the teacher's actor loss and
-    likelihood term (UDPO's own plan ``E[h]`` over-reaches with a weak ``planner_coef`` and stalls with a strong one).
-    Every label is a real position; the student's mean may still land slightly on the wrong side of a wall the teacher
-    slides along (``zoo_runs/landmarks/``): for landmarks that must be real positions (guidance), the planner keeps
-    ``support_size`` of the achieved goals of the pairs' states, positions the source really occupied, and
-    ``plan(..., snap=True)`` replaces each landmark by the nearest of them (:meth:`GoalPlanner.snap`).
-    It costs ``n_samples`` env steps and needs no replay buffer. Goals are the env's
-    desired goals rather than the paper's ``g_target ~ p_g`` drawn independently of ``s``: the teacher's episodes are
-    the only ones whose next goals are real.
+    reached: **a landmark of the distilled planner is an immediate one, the next goal the teacher reached in one step
+    from ``g`` on its way to ``g_target``**. Every label is a real position; for landmarks that must be real positions
+    (guidance) the planner keeps ``support_size`` of the pairs' achieved goals, and ``plan(..., snap=True)`` replaces
+    each landmark by the nearest of them (:meth:`GoalPlanner.snap`). It costs ``n_samples`` env steps and needs no
+    replay buffer. A teacher whose rollouts reach no goal is refused (``allow_unsuccessful_teacher``).
 
-    With ``labels="planned"`` (the paper's eq. "distill") states ``s ~ B`` are drawn from the model's replay buffer
-    and target goals ``g_target ~ p_g`` independently from the desired goals stored in it, and the label is
-    ``phi(s')``, the achieved-goal slice of the teacher's planned next state, mapped back to raw coordinates with the
-    model's ``VecNormalize`` statistics (the buffer stores raw observations, the teacher sees normalised ones). With
-    ``labels="reached"`` (a teacher trained with ``plan_target="policy"``) the label is where the teacher's
-    deterministic action for its plan leads, as its forward dynamics model predicts it (see
-    :func:`teacher_goal_distribution`). The loss (:func:`distillation_loss`) is the student's expected NLL of the
-    teacher's Gaussian, in closed form (a real step is a Gaussian of standard deviation 0).
+    With ``labels="planned"`` (the paper's eq. "distill", a UDPO teacher only) states ``s ~ B`` are drawn from the
+    model's replay buffer and target goals ``g_target ~ p_g`` independently from the desired goals stored in it, and
+    the label is ``phi(s')``, the achieved-goal slice of the teacher's planned next state ``s' ~ h(. | s, g_target)``,
+    mapped back to raw coordinates with the model's ``VecNormalize`` statistics. The loss (:func:`distillation_loss`)
+    is the student's expected NLL of the teacher's Gaussian, in closed form (a real step: standard deviation 0).
 
-    A held-out share of the pairs measures the student against the teacher before and after training, stored in
-    ``planner.metadata["holdout"]``: ``nll`` and ``landmark_distance`` (see :class:`HoldoutReport`), with
-    ``*_untrained`` values for the initial student, and ``teacher_step`` (mean distance from ``g`` to the teacher's
-    mean, for scale).
+    ``planner.metadata`` records the source task and its declared goal space (``goal_space_id``), the teacher's
+    algorithm (``teacher_algorithm``), the labels, ``rollout_success`` (the success rate of the rollouts' ended
+    episodes) and ``holdout``: the student against the teacher on a held-out share of the pairs, before and after
+    training (``nll``, ``landmark_distance``, their ``*_untrained`` values, and ``teacher_step``, the mean distance from
+    ``g`` to the teacher's next goal, for scale).
 
-    :param model: the trained UDPO teacher (on a Dict goal env; with its replay buffer for ``"planned"`` and
-        ``"reached"`` labels)
+    :param model: the trained teacher, or the path of its file
     :param n_samples: number of (state, target goal) pairs (env steps for ``"rollouts"``), held-out ones included
     :param gradient_steps: number of gradient steps
     :param batch_size: minibatch size
@@ -402,23 +405,27 @@ def distill_goal_planner(
     :param logger: SB3 logger for ``distill/*`` values (default: stdout if ``verbose >= 1``, else none)
     :param log_interval: gradient steps between two logger dumps
     :param verbose: verbosity level: 0 no output, 1 losses and report
-    :param labels: ``"rollouts"`` (real next goals of the teacher's episodes), ``"planned"`` or ``"reached"`` (see
-        above)
+    :param labels: ``"rollouts"`` (real next goals of the teacher's steps) or ``"planned"`` (UDPO's plans, see above)
     :param env: the env of the ``"rollouts"`` (default: the model's; its current episodes end, and a model's next
-        ``learn()`` starts new ones): pass an evaluation env to leave the training env's episodes and monitor alone
-    :param deterministic: with ``"rollouts"``, act with the mean plan's action; by default actions are sampled from
-        the teacher's policy, so the labels are its next-goal *distribution*, realised (as eq. "distill" matches the
-        distribution of ``h``), and the states cover the neighbourhood of its paths that the chained landmarks visit
+        ``learn()`` starts new ones), with the teacher's ``VecNormalize`` statistics if it was trained with them
+    :param deterministic: with ``"rollouts"``, act with the policy's deterministic action; by default actions are
+        sampled from the teacher's policy, so the labels are its next-goal *distribution*, realised, and the states
+        cover the neighbourhood of its paths that the chained landmarks visit
     :param support_size: number of the training pairs' achieved goals (drawn at random) kept as the planner's
         support for ``snap=True`` (0: none)
+    :param rollout_noise: with ``"rollouts"``, standard deviation of Gaussian noise on the normalised action (in
+        ``[-1, 1]``); None: 0.1 for a teacher whose policy is deterministic (TD3, DDPG: its rollouts would otherwise
+        have no spread) unless ``deterministic``, 0 for the others
+    :param allow_unsuccessful_teacher: distil a teacher whose rollouts reach no goal (refused by default)
     :return: the distilled goal planner (on the model's device)
     """
-    _check_teacher(model)
     check_number("holdout_fraction", holdout_fraction, minimum=0, strict=True)
     check_number("learning_rate", learning_rate, minimum=0, strict=True)
     for name, value in (("n_samples", n_samples), ("gradient_steps", gradient_steps), ("batch_size", batch_size)):
         check_number(name, value, minimum=1, integer=True)
     check_number("support_size", support_size, minimum=0, integer=True)
+    if rollout_noise is not None:
+        check_number("rollout_noise", rollout_noise, minimum=0)
     if holdout_fraction >= 1:
         raise ValueError(f"holdout_fraction must be in (0, 1), got {holdout_fraction}.")
     n_holdout = round(holdout_fraction * n_samples)
@@ -427,15 +434,23 @@ def distill_goal_planner(
             f"n_samples={n_samples} leaves {n_holdout} held-out and {n_samples - n_holdout} training samples: "
             f"need >= 1 and >= batch_size={batch_size}."
         )
+    if isinstance(model, (str, os.PathLike)):
+        model = load_teacher(model, env=env)
+    check_teacher(model, labels, env)
+    source_env = env if env is not None else model.get_env()
     if source_task is None:
-        source_env = env if env is not None else model.get_env()
         if source_env is None:
             raise ValueError("The model has no env to read the source task from: pass source_task=<its Gymnasium ID>.")
         source_task = task_id(source_env)
+    if rollout_noise is None:
+        rollout_noise = DETERMINISTIC_TEACHER_NOISE if is_deterministic(model) and not deterministic else 0.0
+    goal_space = env_goal_space(source_env) if source_env is not None else None
     if logger is None:
         logger = Logger(None, [HumanOutputFormat(sys.stdout)] if verbose >= 1 else [])
 
-    data, facts = distillation_data(model, n_samples, seed, labels, env, deterministic)
+    data, facts = distillation_data(
+        model, n_samples, seed, labels, env, deterministic, rollout_noise, allow_unsuccessful_teacher
+    )
     holdout, train = data.rows(slice(n_holdout)), data.rows(slice(n_holdout, None))
     generator = th.Generator(device=model.device).manual_seed(seed)
     holdout_labels = holdout.teacher_mean + holdout.teacher_std * th.randn(
@@ -445,12 +460,14 @@ def distill_goal_planner(
         th.manual_seed(seed)
         metadata = {
             "source_task": source_task,
+            **({"goal_space_id": goal_space} if goal_space is not None else {}),
+            "teacher_algorithm": type(model).__name__,
             "n_samples": len(train.achieved_goal),
             "gradient_steps": gradient_steps,
             "seed": seed,
             "teacher_num_timesteps": model.num_timesteps,
             "labels": labels,
-            **({"deterministic": deterministic} if labels == "rollouts" else {}),
+            **({"deterministic": deterministic, "rollout_noise": rollout_noise} if labels == "rollouts" else {}),
             **facts,
         }
         planner = GoalPlanner(data.achieved_goal.shape[1], net_arch, metadata=metadata).to(model.device)

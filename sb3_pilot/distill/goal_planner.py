@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import os
 import warnings
 from typing import Any
@@ -10,7 +11,9 @@ import gymnasium as gym
 import numpy as np
 import torch as th
 from gymnasium import spaces
+from gymnasium.envs.registration import load_env_creator
 from stable_baselines3.common.torch_layers import create_mlp
+from stable_baselines3.common.vec_env import VecEnv
 from torch import nn
 
 from sb3_pilot.common.distributions import LOG_STD_MAX, LOG_STD_MIN, gaussian_log_prob
@@ -18,25 +21,70 @@ from sb3_pilot.common.utils import check_number, task_id
 from sb3_pilot.distill.goal_map import GoalMap
 from sb3_pilot.version import __version__
 
-#: Groups of task IDs whose goals have the same meaning in the same coordinates (the paper's transfer pairs):
+#: Groups of task IDs declared (:func:`share_goal_space`) to have goals of the same meaning in the same coordinates:
 #: a planner distilled on one task of a group may plan for any task of the group.
-SHARED_GOAL_SPACES: list[frozenset[str]] = [
-    frozenset({"Pilot/FetchReach-v0", "Pilot/FetchReachHighDim-v0", "Pilot/FetchReachImage-v0"}),
-    frozenset({"Pilot/FetchPush-v0", "Pilot/FetchPushHighDim-v0"}),
-    frozenset({"Pilot/Reacher-v0", "Pilot/ReacherImage-v0"}),
-    frozenset({"Pilot/PointLocomotion-v0", "Pilot/AntLocomotion-v0"}),
-    frozenset({"Pilot/Maze2D-v0", "Pilot/AntMaze-v0"}),
-]
-
+SHARED_GOAL_SPACES: list[frozenset[str]] = []
 
 #: Known maps between the goal coordinates of two tasks (:func:`share_goal_space` with ``goal_map``):
 #: ``GOAL_MAPS[(first, second)]`` maps the first task's goals to the second's.
 GOAL_MAPS: dict[tuple[str, str], GoalMap] = {}
 
 
+def env_goal_space(env: gym.Env | VecEnv) -> str | None:
+    """
+    The goal space a task declares: the ``goal_space_id`` attribute of its unwrapped env (of the first env of a
+    ``VecEnv``). Tasks that declare the same ``goal_space_id`` have goals of the same meaning in the same coordinates,
+    so a planner distilled on one plans for the others (the ``Pilot/...`` tasks declare theirs).
+
+    :param env: a Gymnasium env or an SB3 ``VecEnv``
+    :return: the declared goal space, None if the task declares none
+    :raises TypeError: if ``goal_space_id`` is set but not a string
+    """
+    unwrapped = env.get_attr("unwrapped", indices=[0])[0] if isinstance(env, VecEnv) else env.unwrapped
+    declared = getattr(unwrapped, "goal_space_id", None)
+    if declared is not None and not isinstance(declared, str):
+        raise TypeError(f"{type(unwrapped).__name__}.goal_space_id must be a string (or None), got {declared!r}.")
+    return declared
+
+
+def registered_goal_space(task: str) -> str | None:
+    """
+    The goal space a registered Gymnasium task declares (see :func:`env_goal_space`): read from its entry point's class
+    when the class sets ``goal_space_id``, else (a property: it depends on the task's kwargs) from an instance.
+
+    :param task: a Gymnasium ID
+    :return: the declared goal space, None if the task is not registered or declares none
+    """
+    return _registered_goal_space(task) if task in gym.registry else None
+
+
+@functools.cache
+def _registered_goal_space(task: str) -> str | None:
+    entry_point = gym.spec(task).entry_point
+    creator = load_env_creator(entry_point) if isinstance(entry_point, str) else entry_point
+    declared = getattr(creator, "goal_space_id", None)
+    if declared is None or isinstance(declared, str):
+        return declared
+    env = gym.make(task)
+    try:
+        return env_goal_space(env)
+    finally:
+        env.close()
+
+
+def _declared_shared(source_task: str, target_task: str) -> bool:
+    """Whether the tasks are one, or :func:`share_goal_space` declared them to share a goal space."""
+    return (
+        source_task == target_task
+        or any({source_task, target_task} <= group for group in SHARED_GOAL_SPACES)
+        or (source_task, target_task) in GOAL_MAPS
+    )
+
+
 def share_goal_space(*task_ids: str, goal_map: GoalMap | None = None) -> None:
     """
-    Declare that tasks share one goal space, so a planner distilled on one of them may guide the others.
+    Declare that tasks share one goal space, so a planner distilled on one of them may guide the others: for tasks
+    that do not declare it themselves (a ``goal_space_id`` attribute, see :func:`env_goal_space`).
 
     With ``goal_map``, two tasks whose goals mean the same in other coordinates, ``g_second = goal_map(g_first)``:
     e.g. ``share_goal_space("PointMaze_UMaze-v3", "AntMaze_UMaze-v5", goal_map=GoalMap(4.0))``. A planner of either
@@ -67,13 +115,13 @@ def shares_goal_space(source_task: str, target_task: str) -> bool:
     """
     :param source_task: task a planner was distilled on
     :param target_task: task it is asked to plan for
-    :return: whether the two tasks are the same or were declared to share their goal space (with a map or without)
+    :return: whether the two tasks are the same, declare the same goal space (:func:`registered_goal_space`), or were
+        declared to share their goal space (:func:`share_goal_space`, with a map or without)
     """
-    return (
-        source_task == target_task
-        or any({source_task, target_task} <= group for group in SHARED_GOAL_SPACES)
-        or (source_task, target_task) in GOAL_MAPS
-    )
+    if _declared_shared(source_task, target_task):
+        return True
+    source_space = registered_goal_space(source_task)
+    return source_space is not None and source_space == registered_goal_space(target_task)
 
 
 def goal_map_between(source_task: str, target_task: str) -> GoalMap | None:
@@ -82,7 +130,7 @@ def goal_map_between(source_task: str, target_task: str) -> GoalMap | None:
     :param target_task: task it is asked to plan for
     :return: the map from the source's goal coordinates to the target's (:func:`share_goal_space`), None for the same
         coordinates
-    :raises ValueError: when the tasks were not declared to share a goal space
+    :raises ValueError: when the tasks do not share a goal space
     """
     if not shares_goal_space(source_task, target_task):
         raise ValueError(f"{source_task!r} and {target_task!r} were not declared to share a goal space.")
@@ -139,6 +187,17 @@ class GoalPlanner(nn.Module):
     def source_task(self) -> str | None:
         """The task the planner was distilled on."""
         return self.metadata.get("source_task")
+
+    @property
+    def source_goal_space(self) -> str | None:
+        """
+        The goal space of the source task: as recorded at distillation (``metadata["goal_space_id"]``), else as the
+        registered source task declares it (:func:`registered_goal_space`), None if neither says.
+        """
+        recorded = self.metadata.get("goal_space_id")
+        if recorded is not None:
+            return recorded
+        return registered_goal_space(self.source_task) if self.source_task is not None else None
 
     def set_scales(self, goals: th.Tensor, deltas: th.Tensor) -> None:
         """
@@ -328,7 +387,8 @@ class GoalPlanner(nn.Module):
     def check_env(self, env: gym.Env) -> GoalMap | None:
         """
         Refuse an env this planner cannot plan for: one whose goal entries have another size, or whose task does not
-        share the goal space of the planner's source task (see :func:`share_goal_space`).
+        share the goal space of the planner's source task: the same task, the same declared ``goal_space_id``
+        (:func:`env_goal_space`, :attr:`source_goal_space`), or tasks declared by :func:`share_goal_space`.
 
         :param env: a goal env (Dict observation with ``achieved_goal`` and ``desired_goal``)
         :return: the map from the planner's goal coordinates to the env's, None when they are the same
@@ -347,14 +407,18 @@ class GoalPlanner(nn.Module):
         target_task = task_id(env)
         if self.source_task is None:
             raise ValueError("The goal planner has no 'source_task' in its metadata: distil it with distill_goal_planner.")
-        if not shares_goal_space(self.source_task, target_task):
+        source_space, target_space = self.source_goal_space, env_goal_space(env)
+        same_space = source_space is not None and source_space == target_space
+        if not (same_space or _declared_shared(self.source_task, target_task)):
             raise ValueError(
-                f"The goal planner was distilled on '{self.source_task}', whose goal space is not that of '{target_task}'. "
-                "If their goals have the same meaning in the same coordinates, declare it with "
-                f"sb3_pilot.share_goal_space({self.source_task!r}, {target_task!r}); if in coordinates related by a known "
-                "affine map, add goal_map=sb3_pilot.GoalMap(matrix, offset) (target goal = matrix @ source goal + offset)."
+                f"The goal planner was distilled on '{self.source_task}' (goal space {source_space!r}), whose goal space "
+                f"is not that of '{target_task}' (goal space {target_space!r}). If their goals have the same meaning in "
+                f"the same coordinates, declare it with sb3_pilot.share_goal_space({self.source_task!r}, "
+                f"{target_task!r}) (or, in an env class of yours, a goal_space_id attribute); if in coordinates related "
+                "by a known affine map, add goal_map=sb3_pilot.GoalMap(matrix, offset) (target goal = matrix @ source "
+                "goal + offset)."
             )
-        goal_map = goal_map_between(self.source_task, target_task)
+        goal_map = None if same_space else GOAL_MAPS.get((self.source_task, target_task))
         if goal_map is not None:
             goal_map.check_goal_dim(self.goal_dim)
         return goal_map

@@ -34,6 +34,9 @@ PILOT_ENV_SPECS: dict[str, tuple[str, dict[str, Any], int]] = {
     "Pilot/Maze2D-v0": ("sb3_pilot.envs.maze:Maze2DEnv", {}, 50),
     "Pilot/Maze2DCar-v0": ("sb3_pilot.envs.car:Maze2DCarEnv", {}, 50),
     "Pilot/AntMaze-v0": ("sb3_pilot.envs.maze:AntMazeEnv", {}, 500),
+    # beyond the paper: the walled maze, a point (a source) and a car (a target) in one square with a wall to go around
+    "Pilot/WallMaze2D-v0": ("sb3_pilot.envs.wall_maze:WallMaze2DEnv", {}, 30),
+    "Pilot/WallMaze2DCar-v0": ("sb3_pilot.envs.wall_maze:WallMaze2DCarEnv", {}, 30),
 }
 PILOT_ENV_IDS: tuple[str, ...] = tuple(PILOT_ENV_SPECS)
 

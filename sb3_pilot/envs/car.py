@@ -12,18 +12,15 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from sb3_pilot.distill.goal_planner import share_goal_space
 from sb3_pilot.envs.core import GoalReachingMixin, check_render_mode, goal_observation, goal_observation_space
 from sb3_pilot.envs.maze import (
     GOAL_DISTRIBUTIONS,
     MAZE_DISTANCE_THRESHOLD,
+    UMAZE_GOAL_SPACE,
     UMAZE_SCALING,
     sample_umaze_start_goal,
     umaze_move,
 )
-
-# a Maze2D planner's landmarks are goals of this task too
-share_goal_space("Pilot/Maze2D-v0", "Pilot/Maze2DCar-v0", "Pilot/AntMaze-v0")
 
 
 class Maze2DCarEnv(GoalReachingMixin, gym.Env):
@@ -43,6 +40,7 @@ class Maze2DCarEnv(GoalReachingMixin, gym.Env):
     """
 
     metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012
+    goal_space_id = UMAZE_GOAL_SPACE  # a Maze2D planner's landmarks are goals of this task too
 
     def __init__(
         self,
@@ -74,9 +72,17 @@ class Maze2DCarEnv(GoalReachingMixin, gym.Env):
         state = np.array([*self.position, np.cos(self.heading), np.sin(self.heading)], dtype=np.float32)
         return goal_observation(state, self.position, self.goal)
 
+    def _start_and_goal(self, options: dict[str, Any] | None) -> tuple[np.ndarray, np.ndarray]:
+        """The episode's start and goal xy (Maze2D's; ``options`` unused): the map's, for a car in another map."""
+        return sample_umaze_start_goal(self.np_random, self.goal_distribution)
+
+    def _move(self, position: np.ndarray, delta: np.ndarray) -> np.ndarray:
+        """Where a move by ``delta`` from ``position`` ends (sliding along the U-maze's walls): the map's motion."""
+        return umaze_move(position, delta)
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        self.position, self.goal = sample_umaze_start_goal(self.np_random, self.goal_distribution)
+        self.position, self.goal = self._start_and_goal(options)
         self.heading = float(self.np_random.uniform(-np.pi, np.pi))
         obs = self._get_obs()
         return obs, self._goal_reward_info(obs)[1]
@@ -85,7 +91,7 @@ class Maze2DCarEnv(GoalReachingMixin, gym.Env):
         speed, turn = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
         self.heading = float(np.angle(np.exp(1j * (self.heading + self.max_turn * turn))))  # wrapped to (-pi, pi]
         direction = np.array([np.cos(self.heading), np.sin(self.heading)])
-        self.position = umaze_move(self.position, self.max_speed * speed * direction)
+        self.position = self._move(self.position, self.max_speed * speed * direction)
         obs = self._get_obs()
         reward, info = self._goal_reward_info(obs)
         return obs, reward, False, False, info

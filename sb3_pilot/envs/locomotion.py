@@ -19,6 +19,8 @@ from gymnasium.envs.mujoco.mujoco_env import MujocoEnv
 from sb3_pilot.envs.core import GoalReachingMixin, check_render_mode, goal_observation, goal_observation_space
 
 LOCOMOTION_GOAL_RADIUS = 2.0
+#: The goal space of the open-ground tasks (``goal_space_id``): the robot's xy on the plane, Point or Ant
+LOCOMOTION_GOAL_SPACE = "Pilot/open-ground-xy"
 LOCOMOTION_DISTANCE_THRESHOLD = 0.1
 # The Ant of AntLocomotion and AntMaze: gymnasium's ant.xml (gear 150, ctrlrange [-1, 1]) with the
 # settings gymnasium-robotics' AntMazeEnv (v5) hard-codes, plus the 27-dim joint-state observation.
@@ -57,6 +59,7 @@ class PointLocomotionEnv(GoalReachingMixin, MujocoEnv):
     """
 
     metadata: dict[str, Any] = {"render_modes": list(_RENDER_MODES), "render_fps": 20}  # noqa: RUF012
+    goal_space_id = LOCOMOTION_GOAL_SPACE
     max_turn = 0.25
 
     def __init__(self, forward_step: float = 0.05, render_mode: str | None = None):
@@ -146,6 +149,7 @@ class AntLocomotionEnv(GoalReachingMixin, AntEnv):
     """
 
     metadata: dict[str, Any] = {"render_modes": list(_RENDER_MODES), "render_fps": 20}  # noqa: RUF012
+    goal_space_id = LOCOMOTION_GOAL_SPACE
 
     def __init__(
         self,

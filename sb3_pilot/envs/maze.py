@@ -37,6 +37,9 @@ UMAZE_GOAL_CELL = (3, 1)  # ... and the other end: the hard case
 UMAZE_POSITION_NOISE = 0.25 * UMAZE_SCALING
 MAZE_DISTANCE_THRESHOLD = 1.0
 GOAL_DISTRIBUTIONS = ("far", "uniform")
+#: The goal space of the U-maze tasks (``goal_space_id``): the xy position in the U-maze, in ``AntMaze_UMaze-v5``'s
+#: world coordinates, whatever moves there (a point, a car, the Ant)
+UMAZE_GOAL_SPACE = "Pilot/U-maze-xy"
 
 _ROWS, _COLS = len(UMAZE_MAP), len(UMAZE_MAP[0])
 _X_CENTER, _Y_CENTER = _COLS / 2 * UMAZE_SCALING, _ROWS / 2 * UMAZE_SCALING
@@ -193,6 +196,7 @@ class Maze2DEnv(GoalReachingMixin, gym.Env):
     """
 
     metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012
+    goal_space_id = UMAZE_GOAL_SPACE
 
     def __init__(self, goal_distribution: str = "far", step_size: float = 0.5, render_mode: str | None = None):
         check_render_mode(render_mode, ())
@@ -240,6 +244,7 @@ class AntMazeEnv(GoalReachingMixin, gym.Env):
     """
 
     metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 20}  # noqa: RUF012
+    goal_space_id = UMAZE_GOAL_SPACE
 
     def __init__(self, goal_distribution: str = "far", render_mode: str | None = None):
         from gymnasium_robotics.envs.maze.ant_maze_v5 import AntMazeEnv as RoboticsAntMazeEnv

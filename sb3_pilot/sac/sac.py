@@ -4,12 +4,15 @@ from typing import Any, ClassVar
 
 import torch as th
 from stable_baselines3 import SAC
+from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.policies import BasePolicy
-from stable_baselines3.common.type_aliases import PyTorchObs
+from stable_baselines3.common.type_aliases import DictReplayBufferSamples, GymEnv, PyTorchObs, ReplayBufferSamples, Schedule
 from stable_baselines3.sac import policies as sac_policies
 
+from sb3_pilot.common.cuda_graph import CudaGraphUpdate
 from sb3_pilot.common.distributions import reparameterised_log_prob
-from sb3_pilot.common.lean import LeanSACSteps, LossRecorder, q_values
+from sb3_pilot.common.lean import LeanSACSteps, LossRecorder, check_replay_sizes
 from sb3_pilot.sac.policies import CnnPolicy, LeanSACPolicy, MlpPolicy, MultiInputPolicy
 
 #: SB3's SAC policy classes and their lean twins
@@ -35,8 +38,39 @@ class LeanSAC(LeanSACSteps, SAC):
     SB3's ``SAC`` load into it (their twin critics are stacked on load). Other ``SACPolicy`` subclasses (whose critic
     is not an ensemble) work too, with the other cuts.
 
-    :param args: positional arguments of SB3's ``SAC`` (``policy``, ``env``, ``learning_rate``, ...)
-    :param kwargs: keyword arguments of SB3's ``SAC``
+    :param policy: ``"MlpPolicy"``, ``"CnnPolicy"``, ``"MultiInputPolicy"`` or a ``SACPolicy`` class
+    :param env: the environment to learn from (a Gymnasium ID, an env or a VecEnv)
+    :param learning_rate: learning rate of the actor, the critics and the temperature (a float, or a schedule of the
+        progress remaining, from 1 to 0)
+    :param buffer_size: size of the replay buffer (>= 1)
+    :param learning_starts: env steps of uniform random actions before learning starts
+    :param batch_size: minibatch size of each gradient step (>= 1)
+    :param tau: the soft (Polyak) update coefficient of the target critics, in [0, 1]
+    :param gamma: the discount factor
+    :param train_freq: update the model every ``train_freq`` steps (or a tuple such as ``(5, "episode")``)
+    :param gradient_steps: gradient steps after each rollout (-1: as many as env steps collected)
+    :param action_noise: noise added to the actions while collecting (None: the policy's own sampling)
+    :param replay_buffer_class: the replay buffer class (e.g. ``HerReplayBuffer``; None: SB3's default)
+    :param replay_buffer_kwargs: keyword arguments of the replay buffer
+    :param optimize_memory_usage: the memory-efficient variant of the replay buffer
+    :param n_steps: n-step returns (1: one-step TD targets)
+    :param ent_coef: the temperature ``alpha``: a float, or ``"auto"`` (``"auto_0.1"``: from 0.1) to learn it
+    :param target_update_interval: gradient steps between two updates of the target critics
+    :param target_entropy: the entropy the learnt temperature aims at (``"auto"``: ``-dim(action)``)
+    :param use_sde: generalised State-Dependent Exploration instead of independent Gaussian noise
+    :param sde_sample_freq: env steps between two draws of the gSDE noise matrix (-1: once per rollout)
+    :param use_sde_at_warmup: use gSDE instead of uniform random actions before learning starts
+    :param stats_window_size: episodes averaged in the rollout logs
+    :param tensorboard_log: the TensorBoard log folder (None: no TensorBoard)
+    :param policy_kwargs: keyword arguments of the policy (``net_arch``, ``n_critics``, ...)
+    :param verbose: 0 no output, 1 info, 2 debug
+    :param seed: seed of the random generators
+    :param device: the device the networks run on (``"auto"``: CUDA if available)
+    :param cuda_graphs: on CUDA, capture the gradient step (critic, actor, temperature, target update) as CUDA graphs
+        and replay them (:mod:`sb3_pilot.common.cuda_graph`; with ``replay_buffer_kwargs=dict(storage="device")`` the
+        HER draw is in the graph too). It changes the random streams; losses are logged as means since the last log
+        dump. gSDE, n-step returns or a model off CUDA fall back to the eager step with a warning
+    :param _init_setup_model: whether to build the networks at creation
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
@@ -45,11 +79,84 @@ class LeanSAC(LeanSACSteps, SAC):
         "MultiInputPolicy": MultiInputPolicy,
     }
 
+    def __init__(
+        self,
+        policy: str | type[sac_policies.SACPolicy],
+        env: GymEnv | str,
+        learning_rate: float | Schedule = 3e-4,
+        buffer_size: int = 1_000_000,
+        learning_starts: int = 100,
+        batch_size: int = 256,
+        tau: float = 0.005,
+        gamma: float = 0.99,
+        train_freq: int | tuple[int, str] = 1,
+        gradient_steps: int = 1,
+        action_noise: ActionNoise | None = None,
+        replay_buffer_class: type[ReplayBuffer] | None = None,
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        optimize_memory_usage: bool = False,
+        n_steps: int = 1,
+        ent_coef: str | float = "auto",
+        target_update_interval: int = 1,
+        target_entropy: str | float = "auto",
+        use_sde: bool = False,
+        sde_sample_freq: int = -1,
+        use_sde_at_warmup: bool = False,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        policy_kwargs: dict[str, Any] | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: th.device | str = "auto",
+        cuda_graphs: bool = False,
+        _init_setup_model: bool = True,
+    ):
+        check_replay_sizes(buffer_size, batch_size)
+        self.cuda_graphs = cuda_graphs
+        super().__init__(
+            policy,
+            env,
+            learning_rate=learning_rate,
+            buffer_size=buffer_size,
+            learning_starts=learning_starts,
+            batch_size=batch_size,
+            tau=tau,
+            gamma=gamma,
+            train_freq=train_freq,
+            gradient_steps=gradient_steps,
+            action_noise=action_noise,
+            replay_buffer_class=replay_buffer_class,
+            replay_buffer_kwargs=replay_buffer_kwargs,
+            optimize_memory_usage=optimize_memory_usage,
+            n_steps=n_steps,
+            ent_coef=ent_coef,
+            target_update_interval=target_update_interval,
+            target_entropy=target_entropy,
+            use_sde=use_sde,
+            sde_sample_freq=sde_sample_freq,
+            use_sde_at_warmup=use_sde_at_warmup,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            policy_kwargs=policy_kwargs,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
+
     def _setup_model(self) -> None:
         # here rather than in __init__: SB3's load() sets the saved policy class after __init__
         self.policy_class = LEAN_POLICIES.get(self.policy_class, self.policy_class)
         self._use_lean_her()
         super()._setup_model()
+        self._cuda_graph_update = CudaGraphUpdate.for_model(self, self._optimizers()) if self.cuda_graphs else None
+
+    def _optimizers(self) -> list[th.optim.Optimizer]:
+        """The optimizers of a gradient step: the actor's, the critics' and the temperature's (if learnt)."""
+        optimizers = [self.actor.optimizer, self.critic.optimizer]
+        if self.ent_coef_optimizer is not None:
+            optimizers.append(self.ent_coef_optimizer)
+        return optimizers
 
     def _create_aliases(self) -> None:
         super()._create_aliases()
@@ -75,46 +182,49 @@ class LeanSAC(LeanSACSteps, SAC):
 
     def train(self, gradient_steps: int, batch_size: int = 64) -> None:
         self.policy.set_training_mode(True)
-        optimizers = [self.actor.optimizer, self.critic.optimizer]
-        if self.ent_coef_optimizer is not None:
-            optimizers.append(self.ent_coef_optimizer)
-        self._update_learning_rate(optimizers)
-        losses = LossRecorder()
-
-        for gradient_step in range(gradient_steps):
-            replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
-            discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
-            if self.use_sde:
-                self.actor.reset_noise()
-
-            # Action by the current actor for the sampled states
-            actions_pi, log_prob = self.action_log_prob(replay_data.observations)
-            log_prob = log_prob.reshape(-1, 1)
-
-            # Entropy coefficient (temperature) loss
-            ent_coef = self._entropy_coef_step(log_prob, losses)
-
-            # Critic loss: 1/2 sum_i (Q_i(s, a) - y)^2, y = r + gamma (1 - d) (min_i Q'_i(s', a') - alpha log pi(a' | s'))
-            with th.no_grad():
-                next_actions, next_log_prob = self.action_log_prob(replay_data.next_observations)
-                next_q_values = q_values(self.critic_target, replay_data.next_observations, next_actions).amin(dim=0)
-                next_q_values = next_q_values - ent_coef * next_log_prob.reshape(-1, 1)
-                target_q_values = replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_values
-            self._critic_step(replay_data.observations, replay_data.actions, target_q_values, losses)
-
-            # Actor loss: E[alpha log pi(a | s) - min_i Q_i(s, a)], gradients for the actor's parameters only
-            min_qf_pi = q_values(self.critic, replay_data.observations, actions_pi).amin(dim=0)
-            actor_loss = (ent_coef * log_prob - min_qf_pi).mean()
-            losses.add("actor_loss", actor_loss)
-            self.actor.optimizer.zero_grad()
-            actor_loss.backward(inputs=self._actor_parameters)
-            self.actor.optimizer.step()
-
-            self._update_target_critics(gradient_step)
+        self._update_learning_rate(self._optimizers())
+        if self._cuda_graph_update is not None:
+            self._cuda_graph_update.run(gradient_steps, batch_size)
+        else:
+            losses = LossRecorder()
+            for gradient_step in range(gradient_steps):
+                replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
+                if self.use_sde:
+                    self.actor.reset_noise()
+                self._gradient_step(replay_data, losses)
+                self._update_target_critics(gradient_step)
+            losses.record(self.logger)
 
         self._n_updates += gradient_steps
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
-        losses.record(self.logger)
+
+    def _gradient_step(self, replay_data: DictReplayBufferSamples | ReplayBufferSamples, losses: LossRecorder) -> None:
+        """
+        One step of the temperature, the critics and the actor on a batch (the target update excluded): pure tensor
+        code, without host reads, which a CUDA graph captures (``cuda_graphs=True``).
+
+        :param replay_data: the batch
+        :param losses: where the losses are logged (a :class:`~sb3_pilot.common.lean.LossRecorder`, or the device sums
+            of a captured step)
+        """
+        # Action by the current actor for the sampled states
+        actions_pi, log_prob = self.action_log_prob(replay_data.observations)
+        log_prob = log_prob.reshape(-1, 1)
+
+        # Entropy coefficient (temperature) loss
+        ent_coef = self._entropy_coef_step(log_prob, losses)
+
+        # Critic loss: 1/2 sum_i (Q_i(s, a) - y)^2, y = r + gamma (1 - d) (min_i Q'_i(s', a') - alpha log pi(a' | s'))
+        with th.no_grad():
+            next_actions, next_log_prob = self.action_log_prob(replay_data.next_observations)
+        target_q_values = self._target_q_values(replay_data, next_actions, next_log_prob, ent_coef)
+        self._critic_step(replay_data.observations, replay_data.actions, target_q_values, losses)
+
+        # Actor loss: E[alpha log pi(a | s) - min_i Q_i(s, a)], gradients for the actor's parameters only
+        actor_loss = self._actor_loss(replay_data.observations, actions_pi, log_prob, ent_coef, losses)
+        self.actor.optimizer.zero_grad()
+        actor_loss.backward(inputs=self._actor_parameters)
+        self.actor.optimizer.step()
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "_actor_parameters"]
+        return [*super()._excluded_save_params(), "_actor_parameters", "_cuda_graph_update"]

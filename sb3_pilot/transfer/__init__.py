@@ -3,11 +3,12 @@ Transfer (paper section 3.3): the reward bonus of a distilled goal planner (HER 
 under another action space, and zero-shot landmark guidance of a pre-trained controller.
 """
 
-from sb3_pilot.transfer.bonus import PilotBonusWrapper, PilotHerReplayBuffer
+from sb3_pilot.transfer.bonus import SIMILARITIES, PilotBonusWrapper, PilotHerReplayBuffer
 from sb3_pilot.transfer.guidance import LandmarkGuidance
 from sb3_pilot.transfer.state_planner import StatePlannerTransferCallback, load_planner_from
 
 __all__ = [
+    "SIMILARITIES",
     "LandmarkGuidance",
     "PilotBonusWrapper",
     "PilotHerReplayBuffer",

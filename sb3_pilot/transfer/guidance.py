@@ -32,8 +32,8 @@ class LandmarkGuidance(gym.Wrapper):
     :param switch_distance: distance to the real goal under which it replaces the landmark (None: the landmark's
         distance; 0: never)
     :param snap: snap the landmarks to the planner's support goals (positions the source really occupied). Off by
-        default, unlike :meth:`GoalPlanner.plan`'s: for a point in Maze2D it removes every in-wall landmark, for the
-        open-ground Ant controller in Ant-Maze it did not help (``zoo_runs/landmarks/``)
+        default, unlike :meth:`GoalPlanner.plan`'s: it removes landmarks inside walls, but a controller that does not
+        follow landmarks exactly may gain nothing from it (measurements: ``docs/results/landmarks.md``)
     """
 
     def __init__(

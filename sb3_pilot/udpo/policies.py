@@ -23,7 +23,6 @@ from sb3_pilot.common.critics import EnsembleCritic
 from sb3_pilot.common.distributions import (
     LOG_STD_MAX,
     LOG_STD_MIN,
-    beta_gaussian_nll,
     gaussian_log_prob,
     multivariate_gaussian_log_prob,
     reparameterised_log_prob,
@@ -38,7 +37,7 @@ DESIRED_GOAL = "desired_goal"
 ACHIEVED_GOAL = "achieved_goal"
 #: ``I`` fits buffer actions clamped to ``[-tanh(3), tanh(3)]`` (+-0.995): an action on the bound of the action space
 #: (clipped exploration noise, a clipping controller) has no pre-squash value, and ``atanh(1 - 1.2e-7) = 8.3`` made those
-#: actions dominate the fit (measured on the walled maze: Gaussian action noise of std 0.2 stopped UDPO learning).
+#: actions dominate the fit (clipped Gaussian exploration noise could then stop UDPO learning).
 ACTION_FIT_BOUND = math.tanh(3.0)
 #: How the decoupled policy's ``log pi(a | s, g)`` is estimated for the entropy terms (see :class:`UDPOPolicy`)
 ENTROPY_TERMS = ("inverse_dynamics", "linearised")
@@ -133,10 +132,6 @@ class PlannerDistribution(NamedTuple):
     def log_prob(self, next_state: th.Tensor) -> th.Tensor:
         """``log h(s' | s, g)`` of next states ``s'``, shape ``(batch,)``."""
         return gaussian_log_prob(next_state - self.state, self.delta_mean, self.delta_log_std)
-
-    def beta_nll(self, next_state: th.Tensor, beta: float) -> th.Tensor:
-        """``-log h(s' | s, g)`` with each dimension weighted by its variance to the power ``beta`` (beta-NLL)."""
-        return beta_gaussian_nll(next_state - self.state, self.delta_mean, self.delta_log_std, beta)
 
 
 class Plan(NamedTuple):
@@ -243,58 +238,30 @@ class StatePlanner(BaseModel):
         return data
 
 
-class DynamicsModel(nn.Module):
+class InverseDynamics(nn.Module):
     """
-    An MLP from ``(state, action)``-derived inputs to a diagonal Gaussian (mean and clamped log-std): what the inverse
-    and the forward dynamics share, each with its own optimizer.
+    Inverse dynamics ``I(a | s, s')`` (paper eq. "inverse-dynamics"): a tanh-squashed diagonal Gaussian over the
+    (normalised) action that takes the planner state from ``s`` to ``s'``. Its input is ``[s, s' - s]``; it has its own
+    optimizer (``optimizer``).
 
     :param state_dim: Size of the planner state
     :param action_dim: Size of the action
-    :param input_dim: Size of the network's input
-    :param output_dim: Size of the Gaussian
     :param net_arch: Hidden layer sizes
     :param activation_fn: Activation function
     """
 
     optimizer: th.optim.Optimizer
 
-    def __init__(
-        self,
-        state_dim: int,
-        action_dim: int,
-        input_dim: int,
-        output_dim: int,
-        net_arch: list[int],
-        activation_fn: type[nn.Module] = nn.ReLU,
-    ):
+    def __init__(self, state_dim: int, action_dim: int, net_arch: list[int], activation_fn: type[nn.Module] = nn.ReLU):
         super().__init__()
         self.state_dim = state_dim
         self.action_dim = action_dim
-        self.net = nn.Sequential(*create_mlp(input_dim, 2 * output_dim, net_arch, activation_fn))
-
-    def gaussian(self, inputs: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        """Mean and log-std (clamped as SAC's actor does) of the Gaussian at ``inputs``."""
-        mean, log_std = self.net(inputs).chunk(2, dim=-1)
-        return mean, th.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX)
-
-
-class InverseDynamics(DynamicsModel):
-    """
-    Inverse dynamics ``I(a | s, s')`` (paper eq. "inverse-dynamics"): a tanh-squashed diagonal Gaussian over the
-    (normalised) action that takes the planner state from ``s`` to ``s'``. Its input is ``[s, s' - s]``.
-
-    :param state_dim: Size of the planner state
-    :param action_dim: Size of the action
-    :param net_arch: Hidden layer sizes
-    :param activation_fn: Activation function
-    """
-
-    def __init__(self, state_dim: int, action_dim: int, net_arch: list[int], activation_fn: type[nn.Module] = nn.ReLU):
-        super().__init__(state_dim, action_dim, 2 * state_dim, action_dim, net_arch, activation_fn)
+        self.net = nn.Sequential(*create_mlp(2 * state_dim, 2 * action_dim, net_arch, activation_fn))
 
     def distribution_params(self, state: th.Tensor, next_state: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        """Mean and log-std of the pre-squash Gaussian over actions."""
-        return self.gaussian(th.cat([state, next_state - state], dim=1))
+        """Mean and log-std (clamped as SAC's actor does) of the pre-squash Gaussian over actions."""
+        mean, log_std = self.net(th.cat([state, next_state - state], dim=1)).chunk(2, dim=-1)
+        return mean, th.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX)
 
     def forward(self, state: th.Tensor, next_state: th.Tensor, deterministic: bool = False) -> tuple[th.Tensor, th.Tensor]:
         """Squashed action in ``[-1, 1]`` and its log-probability."""
@@ -307,35 +274,6 @@ class InverseDynamics(DynamicsModel):
         """
         mean, log_std = self.distribution_params(state, next_state)
         return squashed_gaussian_log_prob(th.atanh(actions.clamp(-ACTION_FIT_BOUND, ACTION_FIT_BOUND)), mean, log_std)
-
-
-class ForwardDynamics(DynamicsModel):
-    """
-    Forward dynamics ``T(s' | s, a)``: a diagonal Gaussian over the change of the planner state ``s' - s`` after the
-    (normalised, squashed) action ``a``, fitted by maximum likelihood on buffer transitions. UDPO uses its mean to
-    predict where the policy's own action ``a ~ I(. | s, s'_plan)`` leads, the target of the planner's likelihood term
-    (``plan_target="policy"``, see :class:`sb3_pilot.udpo.UDPO`).
-
-    :param state_dim: Size of the planner state
-    :param action_dim: Size of the action
-    :param net_arch: Hidden layer sizes
-    :param activation_fn: Activation function
-    """
-
-    def __init__(self, state_dim: int, action_dim: int, net_arch: list[int], activation_fn: type[nn.Module] = nn.ReLU):
-        super().__init__(state_dim, action_dim, state_dim + action_dim, state_dim, net_arch, activation_fn)
-
-    def distribution_params(self, state: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        """Mean and log-std of the Gaussian over ``s' - s``."""
-        return self.gaussian(th.cat([state, actions], dim=1))
-
-    def forward(self, state: th.Tensor, actions: th.Tensor) -> th.Tensor:
-        """The mean next planner state ``E[s' | s, a]``."""
-        return state + self.distribution_params(state, actions)[0]
-
-    def log_prob(self, state: th.Tensor, next_state: th.Tensor, actions: th.Tensor) -> th.Tensor:
-        """``log T(s' | s, a)`` of buffer transitions, shape ``(batch,)`` (the supervised loss is its negative)."""
-        return gaussian_log_prob(next_state - state, *self.distribution_params(state, actions))
 
 
 class UDPOPolicy(BasePolicy):
@@ -377,15 +315,12 @@ class UDPOPolicy(BasePolicy):
         :meth:`load_state_planner`): UDPO then trains only the inverse dynamics (the policy reads neither the
         critics nor the temperature, which exist to train the planner, so they stay untrained)
     :param use_sde: must be False (accepted because SAC writes it into the ``policy_kwargs`` dict it is given)
-    :param forward_dynamics: build a forward dynamics model ``T(s' | s, a)`` (``forward_dynamics`` attribute, same
-        architecture as the inverse dynamics, trained with its learning rate); UDPO sets it from its ``plan_target``
     :param entropy_term: how ``log pi(a | s, g)`` is estimated, one of :data:`ENTROPY_TERMS` (UDPO sets it from its
         own ``entropy_term``)
     """
 
     state_planner: StatePlanner
     inverse_dynamics: InverseDynamics
-    forward_dynamics: ForwardDynamics | None
     critic: EnsembleCritic
     critic_target: EnsembleCritic
     last_plan_mean: th.Tensor | None = None
@@ -407,7 +342,6 @@ class UDPOPolicy(BasePolicy):
         inverse_dynamics_lr_schedule: Schedule | None = None,
         freeze_state_planner: bool = False,
         use_sde: bool = False,
-        forward_dynamics: bool = False,
         entropy_term: str = "inverse_dynamics",
     ):
         if use_sde:
@@ -437,7 +371,6 @@ class UDPOPolicy(BasePolicy):
         self.planner_lr_schedule = planner_lr_schedule
         self.inverse_dynamics_lr_schedule = inverse_dynamics_lr_schedule
         self.freeze_state_planner = freeze_state_planner
-        self.use_forward_dynamics = forward_dynamics
         self.entropy_term = entropy_term
         self._build(lr_schedule)
 
@@ -455,14 +388,6 @@ class UDPOPolicy(BasePolicy):
         self.inverse_dynamics = InverseDynamics(
             self.state_planner.state_dim, get_action_dim(self.action_space), self.inverse_dynamics_arch, self.activation_fn
         )
-        self.forward_dynamics = None
-        if self.use_forward_dynamics:
-            self.forward_dynamics = ForwardDynamics(
-                self.state_planner.state_dim,
-                get_action_dim(self.action_space),
-                self.inverse_dynamics_arch,
-                self.activation_fn,
-            )
         self.critic = self._make_critic()
         self.critic_target = self._make_critic()
         self.critic_target.load_state_dict(self.critic.state_dict())
@@ -471,7 +396,6 @@ class UDPOPolicy(BasePolicy):
             self,
             *self.state_planner.modules(),
             *self.inverse_dynamics.modules(),
-            *(self.forward_dynamics.modules() if self.forward_dynamics is not None else ()),
             *self.critic.modules(),
         ]
         if self.freeze_state_planner:
@@ -487,12 +411,6 @@ class UDPOPolicy(BasePolicy):
             lr=(self.inverse_dynamics_lr_schedule or lr_schedule)(1),
             **self.optimizer_kwargs,  # type: ignore[call-arg]
         )
-        if self.forward_dynamics is not None:
-            self.forward_dynamics.optimizer = self.optimizer_class(
-                self.forward_dynamics.parameters(),
-                lr=(self.inverse_dynamics_lr_schedule or lr_schedule)(1),
-                **self.optimizer_kwargs,  # type: ignore[call-arg]
-            )
         self.critic.optimizer = self.optimizer_class(
             self.critic.parameters(),
             lr=lr_schedule(1),
@@ -527,7 +445,6 @@ class UDPOPolicy(BasePolicy):
             features_extractor_class=self.features_extractor_class,
             features_extractor_kwargs=self.features_extractor_kwargs,
             freeze_state_planner=self.freeze_state_planner,
-            forward_dynamics=self.use_forward_dynamics,
             entropy_term=self.entropy_term,
         )
         return data
@@ -613,10 +530,9 @@ class UDPOPolicy(BasePolicy):
         except th.linalg.LinAlgError as error:  # positive-definite by construction unless an entry is NaN
             raise FloatingPointError(
                 "UDPO diverged: the linearised entropy term's action covariance J diag(sigma_h^2) J^T + diag(sigma_I^2) "
-                "holds NaN, so the state planner or the inverse dynamics output NaN. On FetchPush this followed a "
-                "temperature runaway from SB3's initial temperature of 1 (zoo_runs/sources/fetchpush): watch "
-                "train/ent_coef and rollout/plan_error; an initial temperature of 0.1 (ent_coef='auto_0.1') avoided "
-                "it there on 4 of 4 seeds."
+                "holds NaN, so the state planner or the inverse dynamics output NaN. A temperature runaway from SB3's "
+                "initial temperature of 1 can cause it: watch train/ent_coef and rollout/plan_error, and try a lower "
+                "initial temperature (ent_coef='auto_0.1'; measurements in docs/results/sources.md)."
             ) from error
 
     def inverse_dynamics_jacobian(self, state: th.Tensor, next_state: th.Tensor) -> th.Tensor:

@@ -9,7 +9,7 @@ from stable_baselines3.common.buffers import NStepReplayBuffer, ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
-from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, PyTorchObs, Schedule
 from stable_baselines3.common.utils import (
     FloatSchedule,
     get_parameters_by_name,
@@ -19,15 +19,15 @@ from stable_baselines3.common.utils import (
 from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
 from torch.nn import functional as F
 
-from sb3_pilot.common.lean import LeanSACSteps, LossRecorder
+from sb3_pilot.common.lean import LeanSACSteps, LossRecorder, check_replay_sizes
 from sb3_pilot.common.utils import check_number
 from sb3_pilot.udpo.policies import (
     ENTROPY_TERMS,
     NO_SDE,
-    ForwardDynamics,
     InverseDynamics,
     MlpPolicy,
     MultiInputPolicy,
+    Plan,
     StatePlanner,
     UDPOPolicy,
     check_observation_space,
@@ -35,129 +35,83 @@ from sb3_pilot.udpo.policies import (
 
 SelfUDPO = TypeVar("SelfUDPO", bound="UDPO")
 
-#: What the planner's likelihood term fits (see ``UDPO``'s ``plan_target``)
-PLAN_TARGETS = ("policy", "buffer")
+#: Options of earlier versions (``forward_dynamics``: of ``policy_kwargs``): the version that removed each, its default
+#: then (a model saved with it loads, the option ignored) and what UDPO does instead
+REMOVED_OPTIONS: dict[str, tuple[str, Any, str]] = {
+    "planner_nll_beta": ("0.2", 0.0, "the likelihood term is the paper's -log h(s' | s, g) (beta 0)"),
+    "plan_target": (
+        "0.2",
+        "buffer",
+        "the likelihood term fits the buffer's next state, the paper's implementation (the default then)",
+    ),
+    "forward_dynamics": ("0.2", False, "the policy has no forward dynamics model, which served plan_target='policy'"),
+}
+
+
+def removed_option_message(name: str, value: Any) -> str:
+    """
+    :param name: a key of :data:`REMOVED_OPTIONS`
+    :param value: the value given (or saved)
+    :return: what to tell who names the option
+    """
+    version, default, instead = REMOVED_OPTIONS[name]
+    return (
+        f"{name}={value!r}: {name} was removed in sb3-pilot {version}: {instead}. Remove it from the call, the "
+        f"hyperparameters or the YAML (a model saved with {name}={default!r} loads, the option ignored)."
+    )
+
+
+def refuse_removed_options(owner: str, options: dict[str, Any]) -> None:
+    """
+    Refuse keyword arguments that UDPO does not take: the removed options (:data:`REMOVED_OPTIONS`) by name and
+    version, any other as Python refuses an unexpected keyword.
+
+    :param owner: the class name, for the message
+    :param options: the unexpected keyword arguments
+    :raises TypeError: if there is any
+    """
+    for name, value in options.items():
+        if name in REMOVED_OPTIONS:
+            raise TypeError(removed_option_message(name, value))
+        raise TypeError(f"{owner}.__init__() got an unexpected keyword argument {name!r}")
 
 
 class UDPO(LeanSACSteps, OffPolicyAlgorithm):
     """
-    Universal Decoupled Policy Optimisation (UDPO), PILoT's pre-training algorithm
-    (Planning Immediate Landmarks of Targets, Liu et al., ICLR 2023, section 3.1).
+    Universal Decoupled Policy Optimisation, PILoT's pre-training algorithm (Liu et al., ICLR 2023, section 3.1).
 
-    The goal-conditioned policy is decoupled as ``pi(a|s,g) = E_{s' ~ h(s'|s,g)} [I(a|s,s')]``:
-    a state planner ``h`` (``policy.state_planner``) and an inverse dynamics model ``I``
-    (``policy.inverse_dynamics``). Twin Q critics and the entropy temperature are trained as in SAC, with the lean steps
-    of :mod:`sb3_pilot.common.lean` that :class:`~sb3_pilot.sac.LeanSAC` uses too (one ensemble for the critics, fused
-    Adam, HER batches gathered in one pass, losses read once per ``train()``).
+    The goal-conditioned policy is decoupled as ``pi(a | s, g) = E_{s' ~ h(s' | s, g)} [I(a | s, s')]`` into a state
+    planner ``h`` (``policy.state_planner``) and an inverse dynamics ``I`` (``policy.inverse_dynamics``); the twin
+    critics and the temperature are SAC's, trained with :class:`~sb3_pilot.sac.LeanSAC`'s steps. ``I`` is fitted by
+    maximum likelihood on buffer transitions ``(s, s', a)`` every ``Delta`` gradient steps and held fixed in between;
+    ``h`` minimises SAC's actor loss through the frozen ``I`` plus ``lambda`` times ``-log h(s' | s, g)`` of the
+    buffer's next state. The planner state ``s`` is ``observation`` followed by ``achieved_goal`` (Dict observations),
+    so the goal mapping ``phi`` is its tail (``policy.goal_slice``). No gSDE, no n-step returns, no image entries in
+    the planner state. Logs SAC's losses, ``train/planner_nll``, ``train/planner_loss``,
+    ``train/inverse_dynamics_loss`` and ``rollout/plan_error`` (the paper's pred-real MSE). The measurements behind
+    the defaults: ``docs/results/sources.md``. The parameters not listed below are SB3 ``SAC``'s, same meaning and
+    defaults. Example (``HerReplayBuffer`` from ``stable_baselines3``):
 
-    - ``I`` is fitted by maximum likelihood on buffer transitions ``(s, s', a)`` every ``inverse_dynamics_interval``
-      gradient steps (``Delta``) and held fixed in between: the actor loss reaches only the planner.
-    - ``h`` minimises the SAC actor loss through the frozen ``I`` plus ``planner_coef`` (``lambda``) times the negative
-      log-likelihood ``-log h(s'_target | s, g)`` of a next state ``s'_target``, the paper's constraint
-      ``max E_{(s, s') ~ pi} [h(s' | s, g)]`` on the transitions of the policy. ``lambda`` defaults to 1e-4, not the
-      paper's 1e-2 (measured, ``zoo_runs/sources/lambda`` and ``zoo_runs/sources/fetchpush``, 3-16 seeds a task):
-      the term pulls the plan towards the buffer's moves; at 1e-2 that pull kept UDPO from the detour SAC + HER
-      learns in a walled maze, and the preset's 5e-3 slowed it on Point-Locomotion (90% success at 1.4x SAC + HER's
-      steps). 1e-3 was faster than 1e-2 on FetchReach, the walled maze and Point-Locomotion, but left UDPO at chance on
-      Fetch-Push, which it learns at 1e-4. 1e-4 is no slower than 1e-3 on FetchReach, Point-Locomotion, Reacher and
-      Maze2D (steps to 90%: 1.00x / 1.07x / 0.88x / 0.94x, every interval holding 1; Reacher's area +0.07 [0.01,
-      0.12]), on the walled maze (area 0.37 against 0.30, 16 seeds), and its state planner transfers (High-Dim-Action:
-      90% on 3 of 3 seeds), if less well than 1e-3's (FetchReach's preset keeps 1e-3 for that).
-      ``lambda = 0`` learns the source tasks but not a state planner: its plans are no next states (planner-mean
-      error 35-62 against 0.6-0.8 at 1e-3 on FetchReach) and the planner transfers nothing (High-Dim-Action: 0.00
-      success against 1.00). ``plan_target`` says which ``s'_target``:
+    .. code-block:: python
 
-      * ``"buffer"`` (default): the real next state of the sampled buffer transition (the implementation of the
-        paper and of sb3-pilot 0.1). The buffer's transitions are those of all past behaviour policies and of
-        HER-relabelled goals, not of ``pi``: a weak ``lambda`` leaves the plan where the actor loss puts it (beyond
-        reach: planned steps 1.6x to 6x the real step on U-mazes at ``lambda = 1e-2``), a strong one pulls it to the
-        average move of the buffer (0.2x at ``lambda = 1``), so ``lambda`` has to be tuned per task.
-      * ``"policy"`` (opt-in): the transition of the policy's own action. A forward dynamics model ``T(s' | s, a)``
-        (``policy.forward_dynamics``, fitted by maximum likelihood on every sampled minibatch of buffer transitions)
-        predicts where the action ``a ~ I(. | s, s'_plan)`` taken for the sampled plan leads:
-        ``s'_target = E[T(. | s, a)]``, held fixed in the gradient: an on-policy estimate of the paper's
-        constraint. It pulls the plan towards the next state the policy reaches, but at ``lambda = 1e-2`` not all
-        the way (measured: the planner's mean is still 1.9x-2.4x the real step on two 2D mazes, see
-        ``zoo_runs/landmarks``). The immediate landmark is ``E[T(. | s, I(s, E[h]))]``, where the policy's
-        deterministic action leads, which ``sb3_pilot.distill.distill_goal_planner`` distils by default for such a
-        teacher (``labels="reached"``): on Maze2D (seed 0) its landmarks step 1.00x the real step and a point
-        following them reaches the far goal for every k = 1..5, but 11/40 of them lie in walls (4-6/40 with
-        ``"buffer"``) and UDPO runs 0.81x SAC's steps/s on FetchReach (0.98x with ``"buffer"``): not the default
-        until it is measured on more seeds and tasks.
-    - The entropy terms need ``log pi(a | s, g)``, intractable for the decoupled policy. ``entropy_term`` says how it
-      is estimated (see :class:`UDPOPolicy`): ``"inverse_dynamics"`` (default) uses ``log I(a | s, s')`` at the sampled
-      plan, as DePO does, on which the planner's spread has no hold; ``"linearised"`` linearises ``I``'s mean at the
-      sampled plan, so that the planner's spread enters it and the temperature controls how widely the policy acts, as
-      SAC's does. Measured (``zoo_runs/sources/lambda``): on the walled maze ``"linearised"`` reaches 90% success on
-      13 of 16 seeds against 2-4 (area +0.20 [0.02, 0.33]), but on FetchReach, PointLocomotion and Reacher it reaches
-      90% later than the default (1.2x, 1.4x, 1.3x its steps) and does not learn FetchPush either; its gradient step
-      costs 1.5-1.7x. So the default stays DePO's; ``"linearised"`` is for tasks where a detour must be found.
-    - The likelihood term pulls the plan's mean by ``(mu - s'_target) / sigma_h^2`` per state dimension, so dimensions
-      the planner predicts almost exactly (on FetchPush the object, the fingers) outweigh the actor loss's gradient
-      (17-270x at ``lambda = 1e-3``). ``planner_nll_beta`` (opt-in) weights each dimension's term by
-      ``sigma_h^(2 beta)`` (beta-NLL). Measured at 0.5 (``zoo_runs/sources/lambda``): 90% success on the walled maze on
-      11 of 16 seeds against 4 (a hint), FetchReach no slower with plans nearer the real next states, PointLocomotion
-      undecided at 3 seeds; not the default.
+        model = UDPO("MultiInputPolicy", "Pilot/Maze2D-v0", replay_buffer_class=HerReplayBuffer).learn(20_000)
+        landmarks = model.predict_next_state(model.get_env().reset())  # E[h(. | s, g)] per env
 
-    The planner state ``s`` is ``observation`` concatenated with ``achieved_goal`` for Dict goal observations, so the
-    goal mapping ``phi`` is the achieved-goal slice of the state (``policy.goal_slice``); with a Box observation
-    (``"MlpPolicy"``) the planner is goal-free (DePO's RL setting). Works with ``HerReplayBuffer``.
-
-    Logged: ``train/critic_loss``, ``train/actor_loss``, ``train/planner_nll`` (of ``s'_target``),
-    ``train/planner_loss``, ``train/inverse_dynamics_loss``, ``train/forward_dynamics_loss`` (``plan_target="policy"``),
-    ``train/ent_coef`` (+ ``train/ent_coef_loss``) and ``rollout/plan_error``, the
-    paper's "pred-real-mse": for each stored transition ``(s, s')``, the mean squared error per state dimension between
-    the planner's mean ``E[h(. | s, g)]`` and ``s'`` (in the policy's input space, i.e. normalised under
-    ``VecNormalize``).
-
-    Differences from SAC that the design imposes: no gSDE (the action comes from the inverse dynamics), no n-step
-    returns (``I`` and ``h`` must fit one-step transitions ``s -> s'``), no image entries in the planner state (``h``
-    predicts the next state as a Gaussian vector).
-
-    :param policy: The policy model to use (``"MultiInputPolicy"`` for Dict goal envs, ``"MlpPolicy"``, or a class)
-    :param env: The environment to learn from (if registered in Gym, can be str)
-    :param learning_rate: learning rate of the critics and the entropy coefficient (paper: Q learning rate);
-        it can be a function of the current progress remaining (from 1 to 0)
-    :param buffer_size: size of the replay buffer
-    :param learning_starts: how many steps of the model to collect transitions for before learning starts
-    :param batch_size: Minibatch size for each gradient update
-    :param tau: the soft update coefficient ("Polyak update", between 0 and 1)
-    :param gamma: the discount factor
-    :param train_freq: Update the model every ``train_freq`` steps (or a tuple like ``(5, "step")``)
-    :param gradient_steps: How many gradient steps to do after each rollout (-1: as many as env steps)
-    :param action_noise: the action noise type (None by default)
-    :param replay_buffer_class: Replay buffer class to use (for instance ``HerReplayBuffer``)
-    :param replay_buffer_kwargs: Keyword arguments to pass to the replay buffer on creation
-    :param optimize_memory_usage: Enable a memory efficient variant of the replay buffer
-    :param n_steps: must be 1: n-step returns would make ``s'`` n steps ahead (accepted for SAC's signature)
-    :param ent_coef: Entropy regularization coefficient, ``'auto'`` (or ``'auto_0.1'``) to learn it
-    :param target_update_interval: update the target network every ``target_update_interval`` gradient steps
-    :param target_entropy: target entropy when learning ``ent_coef`` (``'auto'``: ``-dim(action)``)
-    :param use_sde: must be False: the action comes from the inverse dynamics (accepted for SAC's signature)
-    :param planner_coef: ``lambda``, weight of the planner's negative log-likelihood of ``s'_target``
-        (paper default 1e-2; 1e-4 here, measured: see above)
-    :param planner_nll_beta: ``beta`` of the likelihood term as a beta-NLL (Seitzer et al., ICLR 2022): each state
-        dimension's negative log-likelihood weighted by ``sigma_h^(2 beta)`` (held fixed). 0 (default) is the paper's
-        term, whose pull on the plan's mean grows as ``1 / sigma_h^2``; 1 makes it a squared error on the mean
-    :param plan_target: what the planner's likelihood term fits: ``"policy"``, the next state of the policy's own
-        action predicted by a learned forward dynamics model (immediate landmarks), or ``"buffer"``, the real next
-        state of buffer transitions (the paper's implementation)
-    :param entropy_term: how the entropy terms estimate ``log pi(a | s, g)``: ``"inverse_dynamics"``
-        (``log I(a | s, s')``, DePO's) or ``"linearised"`` (the decoupled policy with ``I`` linearised at the plan)
-    :param inverse_dynamics_interval: ``Delta``, number of gradient steps between two refits of the inverse dynamics
-        (paper default 1500, 200 for Fetch)
-    :param inverse_dynamics_gradient_steps: supervised gradient steps of each refit of the inverse dynamics
-    :param planner_learning_rate: learning rate of the state planner (paper: policy learning rate);
-        None uses ``learning_rate``
-    :param inverse_dynamics_learning_rate: learning rate of the inverse dynamics (paper: 1e-4);
-        None uses ``learning_rate``
-    :param stats_window_size: Window size for the rollout logging
-    :param tensorboard_log: the log location for tensorboard (if None, no logging)
-    :param policy_kwargs: additional arguments to be passed to the policy on creation
-    :param verbose: Verbosity level: 0 no output, 1 info, 2 debug
-    :param seed: Seed for the pseudo random generators
-    :param device: Device (cpu, cuda, ...) on which the code should be run
-    :param _init_setup_model: Whether or not to build the network at the creation of the instance
+    :param policy: ``"MultiInputPolicy"`` (Dict goal envs), ``"MlpPolicy"`` (goal-free planner) or a policy class
+    :param env: the environment to learn from (a Gymnasium ID, an env or a VecEnv)
+    :param learning_rate: learning rate of the critics and the temperature (a float or a schedule)
+    :param buffer_size: size of the replay buffer (>= 1)
+    :param batch_size: minibatch size of each gradient step (>= 1)
+    :param n_steps: must be 1: ``I`` and ``h`` fit one-step transitions (accepted for SAC's signature)
+    :param use_sde: must be False: the action comes from ``I`` (accepted for SAC's signature)
+    :param planner_coef: ``lambda``, weight of the planner's ``-log h(s' | s, g)`` (the paper's 1e-2 is stronger)
+    :param entropy_term: how the entropy terms estimate ``log pi(a | s, g)``: ``"inverse_dynamics"`` (``log I`` at
+        the sampled plan, DePO's) or ``"linearised"`` (``I`` linearised at the plan, so that ``h``'s spread enters it;
+        for tasks where a detour must be found), see :class:`~sb3_pilot.udpo.UDPOPolicy`
+    :param inverse_dynamics_interval: ``Delta``, gradient steps between two refits of ``I`` (paper: 1500, Fetch 200)
+    :param inverse_dynamics_gradient_steps: supervised gradient steps of each refit of ``I``
+    :param planner_learning_rate: learning rate of ``h`` (None: ``learning_rate``)
+    :param inverse_dynamics_learning_rate: learning rate of ``I`` (None: ``learning_rate``)
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
@@ -167,7 +121,6 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
     policy: UDPOPolicy
     state_planner: StatePlanner
     inverse_dynamics: InverseDynamics
-    forward_dynamics: ForwardDynamics | None
 
     def __init__(
         self,
@@ -191,8 +144,6 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         target_entropy: str | float = "auto",
         use_sde: bool = False,
         planner_coef: float = 1e-4,
-        planner_nll_beta: float = 0.0,
-        plan_target: str = "buffer",
         entropy_term: str = "inverse_dynamics",
         inverse_dynamics_interval: int = 1500,
         inverse_dynamics_gradient_steps: int = 50,
@@ -205,13 +156,14 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         seed: int | None = None,
         device: th.device | str = "auto",
         _init_setup_model: bool = True,
+        **removed_options: Any,
     ):
+        removed_policy_options = {name: value for name, value in (policy_kwargs or {}).items() if name in REMOVED_OPTIONS}
+        refuse_removed_options(type(self).__name__, {**removed_options, **removed_policy_options})
         if use_sde:
             raise ValueError(NO_SDE)
+        check_replay_sizes(buffer_size, batch_size)
         check_number("planner_coef (lambda)", planner_coef, minimum=0)
-        check_number("planner_nll_beta", planner_nll_beta, minimum=0, maximum=1)
-        if plan_target not in PLAN_TARGETS:
-            raise ValueError(f"plan_target must be one of {PLAN_TARGETS}, got {plan_target!r}.")
         if entropy_term not in ENTROPY_TERMS:
             raise ValueError(f"entropy_term must be one of {ENTROPY_TERMS}, got {entropy_term!r}.")
         for name, rate in (
@@ -260,8 +212,6 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         self.target_update_interval = target_update_interval
         self.ent_coef_optimizer: th.optim.Adam | None = None
         self.planner_coef = planner_coef
-        self.planner_nll_beta = planner_nll_beta
-        self.plan_target = plan_target
         self.entropy_term = entropy_term
         self.inverse_dynamics_interval = inverse_dynamics_interval
         self.inverse_dynamics_gradient_steps = inverse_dynamics_gradient_steps
@@ -274,6 +224,7 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
             self._setup_model()
 
     def _setup_model(self) -> None:
+        self._drop_removed_options()
         if not isinstance(self.action_space, spaces.Box):
             raise ValueError(
                 "UDPO needs a continuous (Box) action space, its inverse dynamics being a squashed Gaussian; "
@@ -298,7 +249,6 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
             **self.policy_kwargs,
             "planner_lr_schedule": self.planner_lr_schedule,
             "inverse_dynamics_lr_schedule": self.inverse_dynamics_lr_schedule,
-            "forward_dynamics": self.plan_target == "policy",
             "entropy_term": self.entropy_term,
         }
         super()._setup_model()
@@ -319,10 +269,20 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         else:
             self.ent_coef_tensor = th.tensor(float(self.ent_coef), device=self.device)
 
+    def _drop_removed_options(self) -> None:
+        """
+        The removed options a loaded model's data sets (SB3's ``load`` writes them before ``_setup_model``): ignored at
+        the value they had by default, refused with the removal's message otherwise.
+        """
+        for name, (_, default, _) in REMOVED_OPTIONS.items():
+            for saved in (self.__dict__, self.policy_kwargs):
+                value = saved.pop(name, default)
+                if value != default:
+                    raise ValueError(removed_option_message(name, value))
+
     def _create_aliases(self) -> None:
         self.state_planner = self.policy.state_planner
         self.inverse_dynamics = self.policy.inverse_dynamics
-        self.forward_dynamics = self.policy.forward_dynamics
         self.critic = self.policy.critic
         self.critic_target = self.policy.critic_target
         self._planner_parameters = list(self.state_planner.parameters())
@@ -336,96 +296,58 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
             optimizers.append(self.ent_coef_optimizer)
         self._update_learning_rate(optimizers)
         update_learning_rate(self.state_planner.optimizer, self.planner_lr_schedule(self._current_progress_remaining))
-        if self.forward_dynamics is not None:
-            update_learning_rate(
-                self.forward_dynamics.optimizer, self.inverse_dynamics_lr_schedule(self._current_progress_remaining)
-            )
         losses = LossRecorder()
 
         for gradient_step in range(gradient_steps):
-            # I is refitted before the policy update that follows it (paper section 3.1, Algorithm 1)
+            # UDPO: I is refitted before the policy update that follows it (paper section 3.1, Algorithm 1)
             if (self._n_updates + gradient_step) % self.inverse_dynamics_interval == 0:
                 self.train_inverse_dynamics(self.inverse_dynamics_gradient_steps, batch_size)
             if self.policy.freeze_state_planner:
                 # A frozen h (a planner transferred from a source): pi(a | s, g) = I(a | s, h(s' | s, g)) reads neither
                 # the critics nor the temperature, which exist to train h, so they are left as they are
                 continue
-
             replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
-            discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
 
-            # a ~ I(. | s, s') at a reparameterised plan s' = h(eps; s, g) (eq. "repara"); I is held fixed: the planner
-            # loss's backward reaches the planner's parameters only
+            # Action of the decoupled policy: a ~ I(. | s, s') at a reparameterised plan s' = h(eps; s, g), I held fixed
             plan = self.policy.plan_and_act(replay_data.observations)
             log_prob = plan.log_prob.reshape(-1, 1)
 
-            # Entropy coefficient loss (SAC), with the policy's log-probability as entropy_term estimates it
+            # Entropy coefficient (temperature) loss, log pi as entropy_term estimates it
             ent_coef = self._entropy_coef_step(log_prob, losses)
 
-            # Critic loss (SAC): 1/2 sum_i (Q_i(s, a, g) - y)^2,
-            # y = r + gamma (1 - d) (min_i Q'_i(s', a', g) - alpha log pi(a' | s', g)), a' ~ I(. | s', s''), s'' ~ h(. | s', g)
+            # Critic loss (SAC's), the next action a' ~ I(. | s', s''), s'' ~ h(. | s', g)
             with th.no_grad():
                 next_plan = self.policy.plan_and_act(replay_data.next_observations)
-                next_q_values = self.critic_target.q_values(replay_data.next_observations, next_plan.actions).amin(dim=0)
-                next_q_values = next_q_values - ent_coef * next_plan.log_prob.reshape(-1, 1)
-                target_q_values = replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_values
-
+            target_q_values = self._target_q_values(replay_data, next_plan.actions, next_plan.log_prob, ent_coef)
             self._critic_step(replay_data.observations, replay_data.actions, target_q_values, losses)
 
-            # DePG actor loss (eq. "depg"): E[alpha log pi(a | s, g) - min_i Q_i(s, a, g)] through the frozen I and critics
-            min_qf_pi = self.critic.q_values(replay_data.observations, plan.actions).amin(dim=0)
-            actor_loss = (ent_coef * log_prob - min_qf_pi).mean()
-            # Planner likelihood term, the paper's constraint max E_{(s,s') ~ pi}[h(s' | s, g)]: -log h(s'_target | s, g)
-            real_next_state = self.state_planner.planner_state(replay_data.next_observations)
-            if self.forward_dynamics is not None:
-                # plan_target="policy": (s, s') ~ pi, s' ~ T(. | s, a) for the policy's own action a ~ I(. | s, s'_plan)
-                losses.add(
-                    "forward_dynamics_loss",
-                    self.train_forward_dynamics(plan.state, real_next_state, replay_data.actions),
-                )
-                with th.no_grad():
-                    target_next_state = self.forward_dynamics(plan.state, plan.actions.detach())
-            else:
-                # plan_target="buffer": the buffer's real transition s -> s' (the behaviour policies' transitions)
-                target_next_state = real_next_state
-            planner_nll = -plan.distribution.log_prob(target_next_state).mean()
-            planner_fit = planner_nll
-            if self.planner_nll_beta:
-                # beta-NLL: each state dimension's term weighted by sigma_h^(2 beta), so that dimensions the planner
-                # predicts almost exactly (sigma_h -> 0) do not swamp the DePG gradient with a 1 / sigma_h^2 pull
-                planner_fit = plan.distribution.beta_nll(target_next_state, self.planner_nll_beta).mean()
-            # Planner loss: the final planner gradient of section 3.1, DePG + lambda * likelihood term
-            planner_loss = actor_loss + self.planner_coef * planner_fit
-            losses.add("actor_loss", actor_loss)
+            # Planner loss (section 3.1): the DePG actor loss through the frozen I and critics, plus lambda times the
+            # planner's negative log-likelihood of the buffer's next state, gradients for the planner's parameters only
+            actor_loss = self._actor_loss(replay_data.observations, plan.actions, log_prob, ent_coef, losses)
+            planner_nll = self.planner_nll(plan, replay_data.next_observations)
+            planner_loss = actor_loss + self.planner_coef * planner_nll
             losses.add("planner_nll", planner_nll)
             losses.add("planner_loss", planner_loss)
             self.state_planner.optimizer.zero_grad()
             planner_loss.backward(inputs=self._planner_parameters)
             self.state_planner.optimizer.step()
 
-            # Target critics: SAC's rule
             self._update_target_critics(gradient_step)
 
         self._n_updates += gradient_steps
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         losses.record(self.logger)
 
-    def train_forward_dynamics(self, state: th.Tensor, next_state: th.Tensor, actions: th.Tensor) -> th.Tensor:
+    def planner_nll(self, plan: Plan, next_observations: PyTorchObs) -> th.Tensor:
         """
-        One maximum-likelihood step of the forward dynamics ``T(s' | s, a)`` on a minibatch of buffer transitions
-        (``plan_target="policy"``). Only ``policy.forward_dynamics`` changes.
+        The planner's likelihood term, the paper's constraint ``max E_{(s, s')} [h(s' | s, g)]``: the mean of
+        ``-log h(s' | s, g)`` over a batch of buffer transitions ``s -> s'``.
 
-        :param state: planner states ``s``
-        :param next_state: planner states ``s'`` reached from them
-        :param actions: the buffer actions in ``[-1, 1]``
-        :return: the negative log-likelihood before the step
+        :param plan: the decoupled policy's pass at the batch's observations ``s`` (it holds ``h(. | s, g)``)
+        :param next_observations: the observations ``s'`` the transitions reached
+        :return: the mean negative log-likelihood, a scalar tensor
         """
-        assert self.forward_dynamics is not None
-        loss = -self.forward_dynamics.log_prob(state.detach(), next_state, actions).mean()
-        self.forward_dynamics.optimizer.zero_grad()
-        loss.backward()
-        self.forward_dynamics.optimizer.step()
-        return loss.detach()
+        return -plan.distribution.log_prob(self.state_planner.planner_state(next_observations)).mean()
 
     def train_inverse_dynamics(self, gradient_steps: int, batch_size: int) -> float:
         """
@@ -535,9 +457,8 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
 
     def predict_next_state(self, observation: np.ndarray | dict[str, np.ndarray], deterministic: bool = True) -> np.ndarray:
         """
-        The planner's landmark: the next planner state ``s' ~ h(. | s, g)`` for an observation (or a batch).
-        This is the plan, not where the policy's action for it leads: with ``plan_target="policy"`` the latter is
-        ``policy.forward_dynamics(s, I(s, E[h]))``, what ``distill_goal_planner`` distils by default.
+        The planner's landmark: the next planner state ``s' ~ h(. | s, g)`` for an observation (or a batch), the
+        plan, not where the policy's action for it leads (which ``sb3_pilot.distill_goal_planner`` distils by default).
 
         :param observation: an observation as the policy sees it (normalised if trained with ``VecNormalize``)
         :param deterministic: return the planner's mean instead of a sample
@@ -561,7 +482,6 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
             *super()._excluded_save_params(),
             "state_planner",
             "inverse_dynamics",
-            "forward_dynamics",
             "critic",
             "critic_target",
             "planner_lr_schedule",
@@ -573,8 +493,6 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
 
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
         state_dicts = ["policy", "state_planner.optimizer", "inverse_dynamics.optimizer", "critic.optimizer"]
-        if self.forward_dynamics is not None:
-            state_dicts.append("forward_dynamics.optimizer")
         if self.ent_coef_optimizer is not None:
             state_dicts.append("ent_coef_optimizer")
             return state_dicts, ["log_ent_coef"]
