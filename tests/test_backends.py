@@ -109,6 +109,15 @@ def test_stage_graphs() -> None:
         "vec-to-image-reacher": bonus,
         "complex-morph": {**bonus, "mega": ()},
         "maze-car": {**bonus, "mega": ()},
+        "wall-maze-car": {"teacher": (), "distill": ("teacher",), "pilot_disp": ("distill",), "her": ()},
+        "pointmaze-to-antmaze": {
+            "teacher": (),
+            "distill": ("teacher",),
+            "controller": (),
+            "pilot": ("distill", "controller"),
+            "unguided": ("controller",),
+            "open_ground": ("controller",),
+        },
         "zero-shot-ant-maze": {
             "maze": (),
             "distill": ("maze",),

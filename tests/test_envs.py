@@ -34,6 +34,9 @@ TABLE_1 = {
     "Pilot/Maze2D-v0": ((2,), np.float32, 2, 2, 1.0, 50),
     "Pilot/Maze2DCar-v0": ((4,), np.float32, 2, 2, 1.0, 50),  # beyond Table 1: the maze-car challenge's target
     "Pilot/AntMaze-v0": ((29,), np.float32, 8, 2, 1.0, 500),
+    # beyond Table 1: the wall-maze-car challenge's source and target
+    "Pilot/WallMaze2D-v0": ((2,), np.float32, 2, 2, 0.1, 30),
+    "Pilot/WallMaze2DCar-v0": ((4,), np.float32, 2, 2, 0.1, 30),
 }
 
 

@@ -1,5 +1,6 @@
 """
-Does a teacher learn to go around the wall of ``WallMazeEnv`` (``test_wall_maze_landmarks_go_around_the_wall``)?
+Does a teacher learn to go around the wall of ``WallMazeEnv`` (``Pilot/WallMaze2D-v0``'s point as the tests build it,
+``tests/maze_envs.py``; ``test_wall_maze_landmarks_go_around_the_wall``)?
 UDPO (``UDPO_SETTINGS``, arguments over them with ``--udpo-kwargs``) and SAC + HER, both with ``SMALL_HER_SETTINGS``,
 evaluated every ``--eval-every`` steps on the cross-wall goals of four start/goal pairs below the gap (deterministic
 actions once, where each episode ends, sampled actions 5 times), with facts about the training episodes since the last

@@ -1,6 +1,8 @@
 """
 RL-Zoo entry point: ``python -m sb3_pilot.experiments.zoo COMMAND [zoo flags]``, COMMAND one of ``train``, ``enjoy``,
-``record_video``, ``record_training``, ``plot_train``, ``plot_from_file``, ``all_plots``.
+``record_video``, ``record_training``, ``plot_train``, ``plot_from_file``, ``all_plots``, and ``distill``, this
+package's own (:func:`distill_zoo_run`: the goal planner of a trained zoo run, written where ``sac_pilot.yml``'s bonus
+reads it).
 
 :func:`register` adds UDPO to the zoo as ``udpo`` (``rl_zoo3.ALGOS``, plus a hyperparameter sampler for
 ``--optimize``) and :class:`~sb3_pilot.sac.LeanSAC` as ``lean_sac`` (SAC's YAML and sampler), and registers the
@@ -47,7 +49,9 @@ import optuna
 import rl_zoo3
 import yaml
 from gymnasium.envs.registration import EnvSpec, load_env_creator
+from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CheckpointCallback
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
 from sb3_pilot.envs import register_envs
 from sb3_pilot.experiments.evaluation import GoalEvalCallback
@@ -266,16 +270,239 @@ def _record_training(argv: list[str], prog: str) -> None:
             subprocess.call = zoo_call
 
 
+#: Where ``distill`` writes a planner unless told otherwise, under the zoo's log folder (``-f``):
+#: ``<folder>/planners/<env name>.pt``, the path the bonus entries of ``hyperparams/sac_pilot.yml`` read with ``-f logs``
+#: (e.g. ``logs/planners/Pilot-Maze2D-v0.pt``).
+PLANNERS_FOLDER = "planners"
+#: Arguments of :func:`~sb3_pilot.distill_goal_planner` that ``distill`` sets itself (not through ``--distill-kwargs``).
+_DISTILL_SET = (
+    *("model", "env", "source_task", "n_samples", "gradient_steps", "labels", "seed", "verbose"),
+    "allow_unsuccessful_teacher",
+)
+
+
+def planner_path(folder: str | os.PathLike, env_id: str) -> Path:
+    """
+    :param folder: the zoo's log folder (``-f``)
+    :param env_id: the teacher's task
+    :return: where ``distill`` writes the planner of a teacher on ``env_id`` by default (:data:`PLANNERS_FOLDER`)
+    """
+    from huggingface_sb3 import EnvironmentName
+
+    return Path(folder) / PLANNERS_FOLDER / f"{EnvironmentName(env_id)}.pt"
+
+
+def find_zoo_run(folder: str | os.PathLike, algo: str, env_id: str, exp_id: int = 0) -> Path:
+    """
+    The final model of a zoo run, found as ``enjoy`` finds it: ``<folder>/<algo>/<env name>_<exp_id>/<env name>.zip``.
+
+    :param folder: the zoo's log folder (``-f``)
+    :param algo: the zoo algorithm of the run
+    :param env_id: its task
+    :param exp_id: the run's number (0: the latest)
+    :return: the model's path
+    :raises FileNotFoundError: naming what is missing: any run of ``algo`` on ``env_id`` under ``folder`` (the runs that
+        are there listed), the run ``exp_id``, the run's model
+    """
+    from huggingface_sb3 import EnvironmentName
+    from rl_zoo3.utils import get_latest_run_id
+
+    if exp_id < 0:
+        raise ValueError(f"--exp-id must be a run number (>= 1) or 0 for the latest, got {exp_id}.")
+    env_name = EnvironmentName(env_id)
+    algo_dir = Path(folder) / algo
+    latest = get_latest_run_id(str(algo_dir), env_name)
+    if latest == 0:
+        runs = sorted(f"{path.parent.name}/{path.name}" for path in Path(folder).glob("*/*_[0-9]*") if path.is_dir())
+        raise FileNotFoundError(
+            f"No run of {algo} on {env_id} under {folder} (no folder {algo_dir / env_name}_<N>); runs there: "
+            f"{', '.join(runs) or 'none'}."
+        )
+    run_dir = algo_dir / f"{env_name}_{exp_id or latest}"
+    if not run_dir.is_dir():
+        ids = sorted(int(path.name.rsplit("_", 1)[1]) for path in algo_dir.glob(f"{env_name}_[0-9]*") if path.is_dir())
+        raise FileNotFoundError(f"--exp-id {exp_id}: there is no run {run_dir}; the runs of {algo} on {env_id}: {ids}.")
+    model_path = run_dir / f"{env_name}.zip"
+    if not model_path.is_file():
+        raise FileNotFoundError(
+            f"The run {run_dir} has no model {model_path.name} (the zoo saves it when training ends: was it interrupted?)."
+        )
+    return model_path
+
+
+def load_zoo_run(
+    model_path: str | os.PathLike, algo: str, env_id: str, seed: int = 0, device: str = "auto", buffer_size: int | None = 1
+) -> tuple[BaseAlgorithm, VecEnv]:
+    """
+    The model of a zoo run, with its env rebuilt as the zoo's ``enjoy`` rebuilds it (``rl_zoo3.create_test_env``): the
+    run's ``env_wrapper`` and ``normalize`` (its saved ``config.yml``), its ``env_kwargs`` (the YAML entry's, replaced by
+    the command line's saved in ``args.yml``) and its ``VecNormalize`` statistics, frozen.
+
+    :param model_path: ``<run folder>/<env name>.zip`` (:func:`find_zoo_run`)
+    :param algo: the zoo algorithm that saved it (``sac``, ``td3``, ``tqc``, ``udpo``, ``lean_sac``, ...)
+    :param env_id: its task
+    :param seed: seed of the env
+    :param device: the model's device
+    :param buffer_size: the replay buffer's size (1: no room is allocated, for a model that acts only; None: the run's)
+    :return: the model (its env attached) and the env
+    """
+    from rl_zoo3 import ALGOS
+    from rl_zoo3.utils import create_test_env, get_saved_hyperparams
+
+    model_path = Path(model_path)
+    saved = model_path.parent / model_path.stem
+    hyperparams, stats_path = get_saved_hyperparams(str(saved), norm_reward=False, test_mode=True)
+    env_kwargs = dict(hyperparams.pop("env_kwargs", None) or {})
+    if (saved / "args.yml").is_file():  # the command line's --env-kwargs replaced the YAML's
+        args = yaml.load((saved / "args.yml").read_text(), Loader=yaml.UnsafeLoader)
+        if args.get("env_kwargs") is not None:
+            env_kwargs = dict(args["env_kwargs"])
+    env = create_test_env(
+        env_id,
+        stats_path=stats_path,
+        seed=seed,
+        should_render=False,
+        hyperparams=hyperparams,
+        env_kwargs=env_kwargs,
+        vec_env_cls=DummyVecEnv,
+    )
+    kwargs = {} if buffer_size is None else {"buffer_size": buffer_size}
+    return ALGOS[algo].load(model_path, env=env, device=device, **kwargs), env
+
+
+def planner_quality(metadata: dict[str, Any]) -> str:
+    """
+    What a goal planner's metadata says of its quality (:func:`~sb3_pilot.distill_goal_planner`'s held-out report), in
+    one line: the held-out landmark distance (from the student's mean to the teacher's) beside the untrained student's
+    and the teacher's own step, the held-out NLL, and the success of the teacher's rollouts (``labels="rollouts"``).
+
+    :param metadata: ``planner.metadata``
+    """
+    holdout = metadata.get("holdout", {})
+    parts = []
+    if "landmark_distance" in holdout:
+        parts.append(
+            f"held-out landmark distance {holdout['landmark_distance']:.3g} (untrained "
+            f"{holdout.get('landmark_distance_untrained', float('nan')):.3g}; the teacher's mean step "
+            f"{holdout.get('teacher_step', float('nan')):.3g})"
+        )
+    if "nll" in holdout:
+        parts.append(f"held-out NLL {holdout['nll']:.3g} (untrained {holdout.get('nll_untrained', float('nan')):.3g})")
+    if "rollout_success" in metadata:
+        parts.append(f"the teacher's rollout success {metadata['rollout_success']:.2f}")
+    return "; ".join(parts) or "no held-out report in the metadata"
+
+
+def _distill_parser(prog: str) -> argparse.ArgumentParser:
+    from rl_zoo3 import ALGOS
+    from rl_zoo3.utils import StoreDict
+
+    from sb3_pilot.distill.teacher import LABELS
+
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description="Distil the goal planner of a trained zoo run (any off-policy goal agent: sac, td3, tqc, udpo, ...) "
+        "and write it where the bonus of hyperparams/sac_pilot.yml reads it.",
+    )
+    parser.add_argument("--algo", required=True, choices=sorted(ALGOS), help="the teacher's zoo algorithm")
+    parser.add_argument("--env", required=True, help="the teacher's task (Gymnasium ID)")
+    parser.add_argument("-f", "--folder", default="logs", help="the zoo's log folder (default: logs)")
+    parser.add_argument("--exp-id", type=int, default=0, help="the run's number (default: 0, the latest)")
+    parser.add_argument("--n-samples", type=int, default=50_000, help="pairs (env steps of the teacher's rollouts)")
+    parser.add_argument("--gradient-steps", type=int, default=5_000)
+    parser.add_argument(
+        "--labels",
+        default="rollouts",
+        choices=LABELS,
+        help="rollouts (any agent's own steps) or planned (UDPO's plans, read from its saved replay buffer)",
+    )
+    parser.add_argument(
+        "--allow-unsuccessful-teacher", action="store_true", help="distil a teacher whose rollouts reach no goal"
+    )
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", default=None, help=f"the planner's file (default: FOLDER/{PLANNERS_FOLDER}/<env name>.pt)")
+    parser.add_argument("--device", default="auto")
+    parser.add_argument("--num-threads", type=int, default=-1, help="torch threads (-1: torch's default)")
+    parser.add_argument("--verbose", type=int, default=0, choices=(0, 1))
+    parser.add_argument(
+        "--distill-kwargs",
+        nargs="+",
+        action=StoreDict,
+        default={},
+        help="other distill_goal_planner arguments, as the zoo's -params (e.g. net_arch:[64,64] support_size:0)",
+    )
+    return parser
+
+
+def _distill(argv: list[str], prog: str) -> None:
+    """``distill``: :func:`find_zoo_run`, :func:`load_zoo_run`, :func:`~sb3_pilot.distill_goal_planner`, save, report."""
+    import inspect
+
+    import torch as th
+
+    from sb3_pilot.distill import distill_goal_planner
+
+    args = _distill_parser(prog).parse_args(argv)
+    if args.env not in gym.registry:
+        raise SystemExit(f"--env {args.env} is no registered Gymnasium task (the Pilot/ and gymnasium-robotics' are).")
+    allowed = set(inspect.signature(distill_goal_planner).parameters) - set(_DISTILL_SET)
+    unknown = sorted(set(args.distill_kwargs) - allowed)
+    if unknown:
+        raise SystemExit(f"--distill-kwargs: {unknown} are no arguments of distill_goal_planner here ({sorted(allowed)}).")
+    try:
+        model_path = find_zoo_run(args.folder, args.algo, args.env, args.exp_id)
+    except (FileNotFoundError, ValueError) as error:
+        raise SystemExit(str(error)) from error
+    if args.labels != "rollouts" and not (model_path.parent / "replay_buffer.pkl").is_file():
+        raise SystemExit(
+            f"--labels {args.labels} reads the teacher's replay buffer, which the run {model_path.parent} did not save "
+            "(train it with --save-replay-buffer), or distil with --labels rollouts."
+        )
+    out = Path(args.out) if args.out is not None else planner_path(args.folder, args.env)
+    if args.num_threads > 0:
+        th.set_num_threads(args.num_threads)
+    print(f"Teacher: {model_path} ({args.algo})")
+    buffer_size = 1 if args.labels == "rollouts" else None
+    model, env = load_zoo_run(model_path, args.algo, args.env, seed=args.seed, device=args.device, buffer_size=buffer_size)
+    if args.labels != "rollouts":
+        model.load_replay_buffer(model_path.parent / "replay_buffer.pkl")
+    try:
+        planner = distill_goal_planner(
+            model,
+            n_samples=args.n_samples,
+            gradient_steps=args.gradient_steps,
+            labels=args.labels,
+            seed=args.seed,
+            env=env,
+            source_task=args.env,
+            verbose=args.verbose,
+            allow_unsuccessful_teacher=args.allow_unsuccessful_teacher,
+            **args.distill_kwargs,
+        )
+    except ValueError as error:  # a refused teacher or argument, named by distill_goal_planner
+        message = str(error).replace("allow_unsuccessful_teacher=True", "--allow-unsuccessful-teacher")
+        raise SystemExit(f"distill: {message}") from error
+    finally:
+        env.close()
+    planner.metadata["teacher_model"] = str(model_path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    planner.save(out)
+    print(f"Saved the goal planner to {out}")
+    print(f"Quality: {planner_quality(planner.metadata)}")
+
+
 def main(argv: list[str] | None = None) -> None:
     """Run ``python -m sb3_pilot.experiments.zoo COMMAND [zoo flags]`` (``argv`` defaults to ``sys.argv[1:]``)."""
     argv = sys.argv[1:] if argv is None else list(argv)
-    if not argv or argv[0] not in ZOO_COMMANDS:
-        commands = ",".join(ZOO_COMMANDS)
+    if not argv or argv[0] not in (*ZOO_COMMANDS, "distill"):
+        commands = ",".join((*ZOO_COMMANDS, "distill"))
         raise SystemExit(f"usage: python -m sb3_pilot.experiments.zoo {{{commands}}} [RL-Zoo flags, see COMMAND -h]")
     command, zoo_argv = argv[0], argv[1:]
     prog = f"python -m sb3_pilot.experiments.zoo {command}"
     register()
-    if command == "train":
+    if command == "distill":
+        _distill(zoo_argv, prog)
+    elif command == "train":
         from rl_zoo3.train import train
 
         sys.argv = [prog, *_with_conf_file(zoo_argv)]
