@@ -13,7 +13,7 @@ import yaml
 
 from sb3_pilot.experiments.challenges import CHALLENGES, format_table, only_stages, run_challenge, steps_to
 from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
-from sb3_pilot.experiments.challenges.stages import STAGE_LOG, STAGE_MARKER
+from sb3_pilot.experiments.challenges.stages import STAGE_COMMAND, STAGE_LOG, STAGE_MARKER
 from sb3_pilot.experiments.demo import main as demo_main
 from sb3_pilot.experiments.plots import main as plots_main
 from sb3_pilot.transfer.state_planner import load_vec_normalize
@@ -81,11 +81,15 @@ def test_high_dim_action_smoke_resume_and_plots(tmp_path: Path, capsys: pytest.C
     for key, stats in saved["source"].obs_rms.items():
         np.testing.assert_array_equal(saved["pilot"].obs_rms[key].mean, stats.mean, err_msg=key)
         np.testing.assert_array_equal(saved["pilot"].obs_rms[key].var, stats.var, err_msg=key)
-    for stage in ("source", "pilot", "her"):  # each stage ran in a process of its own, its output in its log
-        assert "python -m sb3_pilot.experiments.zoo train" in (run_dir / "models" / "seed_0" / stage / STAGE_LOG).read_text()
+    for stage in ("source", "pilot", "her"):  # each stage ran in a process of its own, its output and command beside it
+        stage_dir = run_dir / "models" / "seed_0" / stage
+        assert "python -m sb3_pilot.experiments.zoo train" in (stage_dir / STAGE_LOG).read_text()
+        command = (stage_dir / STAGE_COMMAND).read_text()
+        assert command.startswith("python -m sb3_pilot.experiments.zoo train --algo") and " -params " in command
+    out = capsys.readouterr().out  # the terminal gets short lines: what each stage does, not its command
+    assert "seed 0 source: udpo on Pilot/FetchReach-v0, 400 env steps" in out and "-params" not in out
     marker = run_dir / "models" / "seed_0" / "source" / STAGE_MARKER
     marker_time = marker.stat().st_mtime
-    capsys.readouterr()
 
     again = run_challenge("high-dim-action", "smoke", root=tmp_path)
     out = capsys.readouterr().out
@@ -148,7 +152,9 @@ def test_maze_car_smoke(tmp_path: Path) -> None:
     assert "sb3_pilot.baselines.MegaCallback" in " ".join(summary["stages"]["seed_0/mega"]["config"]["zoo"])
     rows = table([run_dir], reps=200)
     assert rows.count("\n") == 1 + 4 and "too few seeds (1)" in rows  # one seed: intervals, but no verdict
-    assert "IQM ratio to SAC+HER's" in rows and all(row.count("|") == 12 for row in rows.splitlines())
+    assert "IQM ratio to SAC+HER's" in rows and all(row.count("|") == 13 for row in rows.splitlines())
+    assert "| HER+PILoT (bonus, displacement_cosine) | 1 (1 source) | 300 | mean " in rows  # its own source; the mean
+    assert "| SAC+HER (scratch) | 1 | 300 | mean " in rows
     statistics = json.loads((run_dir / "summary.json").read_text())["statistics"]
     assert set(statistics["comparisons"]) == {
         "HER+PILoT (bonus, paper: goal_cosine)",

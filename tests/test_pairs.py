@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -11,8 +12,10 @@ import yaml
 
 from sb3_pilot.experiments.challenges import BUDGETS, CHALLENGES, REUSE_SHIPPED, run_challenge
 from sb3_pilot.experiments.challenges.definitions import HER, IMAGE_ENCODER, PILOT_DISPLACEMENT, PILOT_PAPER
+from sb3_pilot.experiments.challenges.runner import count_sources
+from sb3_pilot.experiments.challenges.stages import REPO_DIR
 from sb3_pilot.experiments.demo import BUDGET as DEMO_BUDGET
-from sb3_pilot.experiments.pairs import FINAL_EVAL, _pace, evaluate_final, table
+from sb3_pilot.experiments.pairs import FINAL_EVAL, _pace, add_statistics, evaluate_final, table
 from sb3_pilot.experiments.pairs import main as pairs_main
 from sb3_pilot.experiments.zoo import hyperparams_dir
 
@@ -24,14 +27,23 @@ PAIRS = {
     "complex-morph": ("Pilot/PointLocomotion-v0", "Pilot/AntLocomotion-v0"),
     "zero-shot-ant-maze": ("Pilot/Maze2D-v0", "Pilot/AntMaze-v0"),
     "maze-car": ("Pilot/Maze2D-v0", "Pilot/Maze2DCar-v0"),  # beyond the paper: a cheap few-shot pair
+    "wall-maze-car": ("Pilot/WallMaze2D-v0", "Pilot/WallMaze2DCar-v0"),  # beyond the paper: a SAC + HER teacher
 }
+#: Zero-shot pairs on gymnasium-robotics' own IDs, compared with the same controller unguided (no SAC + HER stage)
+UNGUIDED_BASELINE = {"pointmaze-to-antmaze": ("PointMaze_UMaze-v3", "AntMaze_UMaze-v5")}
 BONUS = ("vec-to-image", "vec-to-image-reacher", "complex-morph", "maze-car")
 PIXEL_POLICY = "sb3_pilot.common.torch_layers.PixelGoalSACPolicy"
 
 
 def test_pairs() -> None:
-    """The paper's six pairs and the cheap maze pair, each with a source, PILoT and SAC+HER on the target, at every budget."""
-    assert set(CHALLENGES) == set(PAIRS)
+    """The paper's six pairs and the cheap maze pairs, each with a source, PILoT and SAC+HER on the target, at every budget."""
+    assert set(CHALLENGES) == set(PAIRS) | set(UNGUIDED_BASELINE)
+    for name, (source_env, target_env) in UNGUIDED_BASELINE.items():
+        challenge = CHALLENGES[name]
+        stages = {stage.name: stage for stage in challenge.stages}
+        assert challenge.target_env == target_env and challenge.stages[0].env_id == source_env, name
+        assert stages["unguided"].method is not None and stages["unguided"].env_id == target_env, name
+        assert stages["pilot"].method is not None and stages["pilot"].env_id == target_env, name
     for name, (source_env, target_env) in PAIRS.items():
         challenge = CHALLENGES[name]
         assert challenge.target_env == target_env
@@ -66,9 +78,10 @@ def test_image_entries_are_pixel_only(conf: str) -> None:
     entries = yaml.safe_load((hyperparams_dir() / conf).read_text())
     for env_id in ("Pilot/FetchReachImage-v0", "Pilot/ReacherImage-v0"):
         assert entries[env_id]["policy"] == PIXEL_POLICY, (conf, env_id)
-    if "sac_pilot" in conf:  # the paper-value bonus is the paper's similarity
+    if "sac_pilot" in conf:  # the paper's targets: the paper's similarity; the maze cars (beyond it): the measured better
         for env_id, entry in entries.items():
-            assert entry["env_wrapper"][0]["sb3_pilot.PilotBonusWrapper"]["similarity"] == "goal_cosine", env_id
+            similarity = "displacement_cosine" if "Maze2DCar" in env_id else "goal_cosine"
+            assert entry["env_wrapper"][0]["sb3_pilot.PilotBonusWrapper"]["similarity"] == similarity, env_id
     assert IMAGE_ENCODER in ("nature", "paper")
     for name in ("vec-to-image", "vec-to-image-reacher"):
         kwargs = CHALLENGES[name].fast_hyperparams["sac"]["policy_kwargs"]["features_extractor_kwargs"]
@@ -107,11 +120,50 @@ def test_pace_reads_censored_ratios_as_bounds() -> None:
     assert _pace(None, stats(0), stats(0)) == "-"
 
 
-def test_pairs_cli_bad_input(capsys: pytest.CaptureFixture[str]) -> None:
+def test_pairs_cli_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     for argv in (["--reps", "0"], ["--episodes", "0"]):
         with pytest.raises(SystemExit):
             pairs_main(argv)
         assert "must be at least 1" in capsys.readouterr().err
+    for argv, missing in (([str(tmp_path)], f"any challenge folder of {tmp_path}"), ([str(tmp_path), "maze-car"], "maze-car")):
+        with pytest.raises(SystemExit):
+            pairs_main(argv)
+        assert f"no summary.json in {missing}" in capsys.readouterr().err.replace(f"{tmp_path}/maze-car", "maze-car")
+
+
+def test_count_sources() -> None:
+    """Distinct sources of a stage's seeds: the stages without inputs it reads from, told apart by their hashes."""
+    challenge = CHALLENGES["zero-shot-ant-maze"]  # pilot reads distill (which reads maze) and controller
+    seeds = [0, 1, 2]
+    own = {f"seed_{seed}/{name}": {"config_hash": f"{name}{seed}"} for seed in seeds for name in ("maze", "controller")}
+    assert count_sources(challenge, "pilot", own, seeds) == 3
+    one_maze = {**own, **{f"seed_{seed}/maze": {"config_hash": "maze"} for seed in seeds}}
+    assert count_sources(challenge, "pilot", one_maze, seeds) == 3  # each seed's controller still its own
+    shipped = {**one_maze, **{f"seed_{seed}/controller": {"config_hash": "controller"} for seed in seeds}}
+    assert count_sources(challenge, "pilot", shipped, seeds) == 1
+    assert count_sources(challenge, "her", own, seeds) == 0  # from scratch
+    assert count_sources(challenge, "pilot", own, [0, 1, 2, 3]) is None  # seed 3's sources not recorded
+    assert count_sources(challenge, "no_such_stage", own, seeds) is None
+
+
+@pytest.mark.parametrize(("folder", "shared"), [("maze-car-shipped", True), ("complex-morph", False)])
+def test_committed_summaries_load_with_their_sources(tmp_path: Path, folder: str, shared: bool) -> None:
+    """A summary.json written before the runner recorded sources: pairs finds them from its stages' hashes (one shipped
+    planner for every seed, or a source trained per seed), and the verdict counts its seeds."""
+    run_dir = tmp_path / folder
+    run_dir.mkdir()
+    shutil.copy(REPO_DIR / "zoo_runs" / folder / "summary.json", run_dir / "summary.json")
+    summary = add_statistics(run_dir, reps=20)
+    assert json.loads((run_dir / "summary.json").read_text()) == summary
+    for method, result in summary["methods"].items():
+        seeds = len(result["runs"])
+        expected = 0 if result["stage"] in ("her", "mega") else 1 if shared else seeds
+        stats = summary["statistics"]["methods"][method]
+        assert result["sources"] == stats["sources"] == expected, method
+        assert stats["seeds"] == seeds and stats["aggregate"] == ("IQM" if seeds >= 4 else "mean")
+        comparison = summary["statistics"]["comparisons"].get(method)
+        if comparison is not None and seeds < 5:
+            assert not comparison["verdict"].startswith(("confirmed", "worse")), comparison["verdict"]
 
 
 @pytest.mark.slow

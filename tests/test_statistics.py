@@ -5,7 +5,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sb3_pilot.experiments.statistics import compare, method_statistics, pointwise_iqm, run_scores, verdict
+from sb3_pilot.experiments.statistics import (
+    CONFIRM_SEEDS,
+    MIN_SEEDS,
+    aggregate_name,
+    compare,
+    format_seeds,
+    iqm,
+    method_statistics,
+    pointwise_iqm,
+    run_scores,
+    summary_statistics,
+    verdict,
+)
 
 STEPS = list(range(2000, 20_001, 2000))
 REPS = 500  # enough for the clear cases here, and fast
@@ -56,6 +68,55 @@ def test_a_clear_gain_is_confirmed_and_no_gain_is_not() -> None:
 def test_verdict_wording() -> None:
     assert verdict({"value": 0.1, "ci": [-0.05, 0.3]}, 10) == "a hint: area gain +0.10 [-0.05, +0.30] includes 0"
     assert verdict({"value": -0.1, "ci": [-0.3, 0.05]}, 10).startswith("no gain shown")
+    above, below = {"value": 0.3, "ci": [0.2, 0.4]}, {"value": -0.3, "ci": [-0.4, -0.2]}
+    assert (MIN_SEEDS, CONFIRM_SEEDS) == (3, 5)
+    assert verdict(above, 5) == "confirmed: area gain +0.30 [+0.20, +0.40]"
+    assert verdict(above, 4) == "a hint: area gain +0.30 [+0.20, +0.40] above 0 on 4 seeds per method (5 needed)"
+    assert verdict(below, 5).startswith("worse than SAC+HER")
+    assert verdict(below, 3) == "no gain shown: area gain -0.30 [-0.40, -0.20] below 0 on 3 seeds per method (5 needed)"
+    assert verdict(above, 2).startswith("too few seeds (2)")
+
+
+def test_iqm_of_under_four_seeds_is_the_mean() -> None:
+    """rliable's IQM (SciPy's trim_mean, 25%) cuts int(n / 4) runs at each end: none under 4, labelled the mean."""
+    for n in range(1, 9):
+        scores = np.arange(n, dtype=np.float64) ** 2  # skewed: any cut moves the mean
+        cuts = iqm(scores) != pytest.approx(scores.mean())
+        assert aggregate_name(n) == ("IQM" if n >= 4 else "mean") and cuts == (n >= 4), n
+    assert format_seeds(3, 3) == "3 (3 sources)" and format_seeds(6, 1) == "6 (1 source)"
+    assert format_seeds(6, 0) == "6" and format_seeds(3, None) == "3 (sources unknown)"
+
+
+@pytest.mark.parametrize(
+    ("seeds", "gain", "expected"),
+    [(3, True, "a hint"), (4, True, "a hint"), (5, True, "confirmed"), (6, True, "confirmed"), (6, False, "no gain shown")],
+)
+def test_verdict_counts_seeds(seeds: int, gain: bool, expected: str) -> None:
+    """A clear gain on 3 or 4 seeds per method is a hint, on 5 or more confirmed; no gain on 6 seeds is none."""
+    rng = np.random.default_rng(seeds)
+    her = ramps(rng.uniform(10_000, 16_000, size=seeds))
+    pilot = ramps(rng.uniform(0, 2000, size=seeds)) if gain else her
+    comparison = compare(pilot, her, reps=200)
+    assert comparison["verdict"].startswith(expected), comparison["verdict"]
+    assert (comparison["area_gain"]["ci"][0] > 0) == gain  # the interval excludes 0 whenever the gain is clear
+    assert comparison["seeds"] == {"method": seeds, "baseline": seeds}
+
+
+def test_summary_statistics_state_seeds_sources_and_the_mean() -> None:
+    """Per method: its seeds, its distinct sources (as the summary records them; None for an older summary) and
+    whether its IQM is a mean."""
+    rng = np.random.default_rng(0)
+    runs = {"PILoT": ramps(rng.uniform(0, 2000, size=3)), "SAC+HER": ramps(rng.uniform(10_000, 16_000, size=4))}
+    summary = {"methods": {method: {"runs": method_runs, "sources": 0} for method, method_runs in runs.items()}}
+    summary["methods"]["PILoT"]["sources"] = 1  # every seed read one shipped source
+    statistics = summary_statistics(summary, "SAC+HER", reps=50)
+    pilot, her = statistics["methods"]["PILoT"], statistics["methods"]["SAC+HER"]
+    assert (pilot["seeds"], pilot["sources"], pilot["aggregate"]) == (3, 1, "mean")
+    assert (her["seeds"], her["sources"], her["aggregate"]) == (4, 0, "IQM")
+    comparison = statistics["comparisons"]["PILoT"]
+    assert comparison["seeds"] == {"method": 3, "baseline": 4} and comparison["verdict"].startswith("a hint")
+    del summary["methods"]["PILoT"]["sources"]  # an older summary: no sources recorded
+    assert summary_statistics(summary, "SAC+HER", reps=50)["methods"]["PILoT"]["sources"] is None
 
 
 def test_a_seed_stopped_early_has_not_reached() -> None:
@@ -85,6 +146,7 @@ def test_method_statistics_and_pointwise_iqm() -> None:
     runs = ramps(np.array([0, 0, 0, 30_000]))  # three seeds at 90% by 8000, one never learns
     stats = method_statistics(runs, reps=REPS)
     assert stats["seeds"] == 4 and stats["steps_to_90"]["reached"] == 3 and stats["steps_to_90"]["censored_at"] == 22_000
+    assert stats["aggregate"] == "IQM"  # 4 seeds: one cut at each end
     assert stats["final_success"]["value"] == 1.0  # the IQM trims the seed that never learned
     low, high = stats["area"]["ci"]
     assert low <= stats["area"]["value"] <= high

@@ -17,20 +17,20 @@ seeded, so the same seed gives the same numbers (one torch thread, CPU).
 Reward bonus: the Maze-Car pair with the shipped Maze2D goal planner (``maze-car --reuse-shipped``), HER + PILoT
 (displacement-cosine bonus) and SAC + HER on the car, ``--bonus-seeds`` seeds (2) at its ``cpu`` budget (20k
 steps), two stages at a time. A few seeds of a sparse-reward task cannot tell a gain from noise: the demo prints
-their areas under the success curve beside the 10-seed result committed in ``zoo_runs/maze-car-shipped``.
+their areas under the success curve beside the run of the same stages committed in ``zoo_runs/maze-car-shipped``.
 
-    python -m sb3_pilot.experiments.demo [--root zoo_runs/demo] [--seed 0] [--source-steps N] [--steps N]
+    python -m sb3_pilot.experiments.demo [--root runs/demo] [--seed 0] [--source-steps N] [--steps N]
         [--bonus-seeds N] [--bonus-steps N]
 
-Reruns resume: finished stages are skipped. ``--source-steps`` / ``--steps`` override the High-Dim-Action budget's
-step counts, ``--bonus-steps`` the Maze-Car ones; ``--bonus-seeds 0`` skips the bonus.
+On a terminal each run shows a live table of its running stages (env steps, elapsed, ETA); each stage's output and
+command line go to its folder. Reruns resume: finished stages are skipped. ``--source-steps`` / ``--steps`` override
+the High-Dim-Action budget's step counts, ``--bonus-steps`` the Maze-Car ones; ``--bonus-seeds 0`` skips the bonus.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -47,8 +47,10 @@ BUDGET = "demo"
 #: The bonus part: Maze-Car with the shipped planner, its displacement-cosine bonus and SAC+HER, at this budget.
 BONUS_CHALLENGE = only_stages(REUSE_SHIPPED["maze-car"], ["pilot_disp", "her"])
 BONUS_BUDGET = "cpu"
-#: The committed 10-seed run of the same stages, the reference the demo's few seeds are printed beside.
+#: The committed run of the same stages, the reference the demo's few seeds are printed beside.
 BONUS_REFERENCE = REPO_DIR / "zoo_runs" / "maze-car-shipped" / "summary.json"
+#: The committed High-Dim-Action run at the cpu budget, whose seeds the demo's one seed is printed beside.
+PLANNER_REFERENCE = REPO_DIR / "zoo_runs" / CHALLENGE / "summary.json"
 
 
 def planner_transfer(root: str, seed: int, source_steps: int | None, target_steps: int | None) -> list[Path]:
@@ -62,7 +64,7 @@ def planner_transfer(root: str, seed: int, source_steps: int | None, target_step
         steps["source"] = source_steps
     if target_steps is not None:
         steps["pilot"] = steps["her"] = target_steps
-    summary = run_challenge(CHALLENGE, BUDGET, seeds=[seed], root=root, steps=steps, progress=sys.stdout.isatty(), jobs=2)
+    summary = run_challenge(CHALLENGE, BUDGET, seeds=[seed], root=root, steps=steps, jobs=2)
     pngs = plot_challenge(Path(root) / CHALLENGE)
     pilot, her = (summary["methods"][name]["runs"][0] for name in (PLANNER_TRANSFER, HER))
     source = summary["stages"][f"seed_{seed}/source"]
@@ -92,7 +94,11 @@ def planner_transfer(root: str, seed: int, source_steps: int | None, target_step
         verdict = "No difference at this budget: both learned equally fast."
     if source_success[-1] < 0.9:
         verdict += " The source ended below 0.9 success: its planner is not a trained one yet."
-    print(verdict + " One seed; zoo_runs/high-dim-action has 3 seeds at the cpu budget.")
+    if PLANNER_REFERENCE.exists():
+        reference = json.loads(PLANNER_REFERENCE.read_text())
+        where = PLANNER_REFERENCE.parent.relative_to(REPO_DIR)
+        verdict += f" One seed; {where} has {len(reference['seeds'])} seeds at the {reference['budget']} budget."
+    print(verdict)
     return pngs
 
 
@@ -108,9 +114,7 @@ def reward_bonus(root: str, seeds: int, steps: int | None) -> list[Path]:
     :return: the plots written
     """
     stage_steps = None if steps is None else {"pilot_disp": steps, "her": steps}
-    summary = run_challenge(
-        BONUS_CHALLENGE, BONUS_BUDGET, seeds=range(seeds), root=root, steps=stage_steps, progress=sys.stdout.isatty(), jobs=2
-    )
+    summary = run_challenge(BONUS_CHALLENGE, BONUS_BUDGET, seeds=range(seeds), root=root, steps=stage_steps, jobs=2)
     pngs = plot_challenge(Path(root) / BONUS_CHALLENGE.name)
     print(
         f"\nReward bonus on Pilot/Maze2DCar-v0 (shipped Maze2D planner), {seeds} seed(s) of "
@@ -135,7 +139,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
         prog="python -m sb3_pilot.experiments.demo", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--root", default="zoo_runs/demo", help="output root (models under ROOT/<challenge>/models)")
+    parser.add_argument("--root", default="runs/demo", help="output root (models under ROOT/<challenge>/models)")
     parser.add_argument("--source-steps", type=int, default=None, help="env steps of the source UDPO (budget: 8000)")
     parser.add_argument("--steps", type=int, default=None, help="env steps of each High-Dim-Action target run (budget: 4000)")
     parser.add_argument("--seed", type=int, default=0, help="High-Dim-Action's seed")

@@ -25,7 +25,7 @@ import torch as th
 from sb3_pilot.distill import GoalPlanner
 from sb3_pilot.envs import register_envs
 from sb3_pilot.experiments.challenges.definitions import REUSE_SHIPPED
-from sb3_pilot.experiments.challenges.stages import Guidance, Shipped, load_zoo_model
+from sb3_pilot.experiments.challenges.stages import Guidance, Shipped, ShippedFileMissing, load_zoo_model, shipped_file
 from sb3_pilot.transfer import LandmarkGuidance
 
 #: The challenge whose shipped models, horizon and switch rule the video shows.
@@ -120,6 +120,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--max-steps", type=int, default=None, help="shorter episodes (a quick check of the command)")
     parser.add_argument("--any", action="store_true", help="draw the first episode whether or not it succeeds")
     args = parser.parse_args(argv)
+    try:
+        for path in (controller_path, planner_path):
+            shipped_file(path)
+    except ShippedFileMissing as error:
+        parser.error(str(error))
     th.set_num_threads(1)
     register_envs()
     model, vec_normalize = load_zoo_model(controller_path, algo=guidance.controller_algo)

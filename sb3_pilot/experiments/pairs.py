@@ -1,13 +1,14 @@
 """
 The results table of the transfer pairs: one row per challenge run (``<root>/<challenge>/summary.json``) and compared
-method, with the ``rliable`` statistics of :mod:`sb3_pilot.experiments.statistics` (interquartile mean over seeds and
+method, with its seeds and the number of distinct sources they read from, the ``rliable`` statistics of
+:mod:`sb3_pilot.experiments.statistics` (interquartile mean over seeds, "mean" where it cuts none, and
 stratified-bootstrap 95% intervals of the area under the success curve, the steps to 50% and 90% success and the
 final success; the probability of improvement over SAC+HER), the final distance to the goal (mean [min, max] over
 seeds), the ratio of the IQM steps to 90% to SAC+HER's with its interval (a bound where one side's seeds did not all
 reach 90%; ``-`` where none did or the method is zero-shot) and a verdict on the paper's claim ("HER+PILoT learns
 the target faster than HER"). The statistics are also written into each ``summary.json`` (``statistics``).
 
-    python -m sb3_pilot.experiments.pairs [ROOT=zoo_runs] [CHALLENGE ...] [--episodes 10] [--reps 2000]
+    python -m sb3_pilot.experiments.pairs [ROOT=runs] [CHALLENGE ...] [--episodes 10] [--reps 2000]
 
 Final distance: the mean ``||achieved_goal - desired_goal||`` at the end of the last evaluation's episodes, as
 ``summary.json`` records it (``final_distance``, from ``GoalEvalCallback``'s ``evaluations.npz`` or a guidance
@@ -15,9 +16,10 @@ stage's episodes); for summaries without it, the zoo's ``evaluations.npz``; runs
 final model (``models/``) played again for ``episodes`` deterministic episodes (``play_episodes``). Either goes to
 ``<root>/<challenge>/final_eval.json`` (reused if present, so the table can be rebuilt without the models).
 
-Verdict, per PILoT method against SAC+HER, on the gain ``IQM(area_PILoT) - IQM(area_HER)`` and its 95% interval:
-``confirmed`` when the interval lies above 0, ``a hint`` when only the estimate does, ``no gain shown`` otherwise,
-``worse than SAC+HER`` when the interval lies below 0, and no verdict under 3 seeds per method.
+Verdict, per PILoT method against SAC+HER, on the gain ``IQM(area_PILoT) - IQM(area_HER)`` and its 95% interval
+(:func:`~sb3_pilot.experiments.statistics.verdict`): ``confirmed`` when the interval lies above 0 on at least 5 seeds
+per method, ``worse than SAC+HER`` when it lies below 0 on as many, ``a hint`` when only the estimate lies above 0 or
+the interval does on fewer seeds, ``no gain shown`` otherwise, and no verdict under 3 seeds per method.
 """
 
 from __future__ import annotations
@@ -31,9 +33,10 @@ import gymnasium as gym
 import numpy as np
 
 from sb3_pilot.experiments.challenges.definitions import CHALLENGES, HER, REUSE_SHIPPED
+from sb3_pilot.experiments.challenges.runner import count_sources
 from sb3_pilot.experiments.challenges.stages import load_zoo_model, play_episodes, zoo_run_dir
 from sb3_pilot.experiments.evaluation import load_final_distances
-from sb3_pilot.experiments.statistics import REPS, format_estimate, summary_statistics
+from sb3_pilot.experiments.statistics import REPS, aggregate_name, format_estimate, format_seeds, summary_statistics
 from sb3_pilot.experiments.zoo import register
 
 FINAL_EVAL = "final_eval.json"
@@ -88,6 +91,11 @@ def evaluate_final(run_dir: Path, episodes: int = 10) -> dict[str, Any]:
     return results
 
 
+def _aggregate(seeds: int) -> str:
+    """``mean `` where the IQM over ``seeds`` cuts none (it is the mean), else nothing (the column says IQM)."""
+    return "mean " if aggregate_name(seeds) == "mean" else ""
+
+
 def _steps(entry: dict[str, Any], seeds: int, zero_shot: bool) -> str:
     """IQM of the steps to a success rate and how many seeds reached it (the others counted at ``censored_at``)."""
     if entry["reached"] == 0:
@@ -95,7 +103,7 @@ def _steps(entry: dict[str, Any], seeds: int, zero_shot: bool) -> str:
     if zero_shot:  # evaluated after 0 target steps only
         return f"at 0 steps ({entry['reached']}/{seeds})"
     low, high = entry["ci"]
-    return f"{entry['value']:.0f} [{low:.0f}, {high:.0f}] ({entry['reached']}/{seeds})"
+    return f"{_aggregate(seeds)}{entry['value']:.0f} [{low:.0f}, {high:.0f}] ({entry['reached']}/{seeds})"
 
 
 def _pace(ratio: dict[str, Any] | None, pilot: dict[str, Any], her: dict[str, Any]) -> str:
@@ -119,7 +127,9 @@ def _spread(values: list[float], digits: int = 2) -> str:
 def add_statistics(run_dir: Path, reps: int = REPS) -> dict[str, Any]:
     """
     Compute the ``rliable`` statistics of a challenge run (:func:`~sb3_pilot.experiments.statistics.summary_statistics`,
-    SAC+HER the baseline) and write them into its ``summary.json`` under ``statistics``.
+    SAC+HER the baseline) and write them into its ``summary.json`` under ``statistics``. A summary written before
+    the runner recorded each method's distinct sources gets them from its stages' hashes
+    (:func:`~sb3_pilot.experiments.challenges.runner.count_sources`; unknown for a stage its challenge no longer has).
 
     :param run_dir: ``<root>/<challenge>``
     :param reps: bootstrap replications
@@ -127,6 +137,11 @@ def add_statistics(run_dir: Path, reps: int = REPS) -> dict[str, Any]:
     """
     path = run_dir / "summary.json"
     summary = json.loads(path.read_text())
+    challenge = BY_FOLDER.get(summary["challenge"])
+    for result in summary["methods"].values():
+        if result.get("sources") is None and challenge is not None:
+            seeds = [run["seed"] for run in result["runs"]]
+            result["sources"] = count_sources(challenge, result["stage"], summary["stages"], seeds)
     summary["statistics"] = summary_statistics(summary, HER, reps=reps)
     path.write_text(json.dumps(summary, indent=1))
     return summary
@@ -138,10 +153,11 @@ def table(run_dirs: list[Path], episodes: int = 10, reps: int = REPS) -> str:
     into their ``summary.json`` (:func:`add_statistics`).
     """
     lines = [
-        "| pair (budget, seeds) | method | env steps | area under the success curve, IQM [95% CI] | steps to 50%, IQM "
-        "[95% CI] (seeds reaching it) | steps to 90% | final success, IQM [95% CI] | final distance, mean [min, max] "
-        "| P(improvement over SAC+HER) [95% CI] | steps to 90%, IQM ratio to SAC+HER's [95% CI] | verdict |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| pair (budget, seeds) | method | seeds (sources) | env steps | area under the success curve, IQM [95% CI] "
+        "| steps to 50%, IQM [95% CI] (seeds reaching it) | steps to 90% | final success, IQM [95% CI] "
+        "| final distance, mean [min, max] | P(improvement over SAC+HER) [95% CI] "
+        "| steps to 90%, IQM ratio to SAC+HER's [95% CI] | verdict |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for run_dir in run_dirs:
         summary = add_statistics(run_dir, reps)
@@ -161,11 +177,13 @@ def table(run_dirs: list[Path], episodes: int = 10, reps: int = REPS) -> str:
             if comparison:
                 ratio = None if zero_shot else comparison["steps_to_90_ratio"]
                 pace = _pace(ratio, stats, statistics["methods"][HER])
+            mean = _aggregate(stats["seeds"])
             lines.append(
-                f"| {pair} | {method} | {result['mean']['timesteps'][-1]} | {format_estimate(stats['area'])} | "
+                f"| {pair} | {method} | {format_seeds(stats['seeds'], stats['sources'])} | "
+                f"{result['mean']['timesteps'][-1]} | {mean}{format_estimate(stats['area'])} | "
                 f"{_steps(stats['steps_to_50'], stats['seeds'], zero_shot)} | "
                 f"{_steps(stats['steps_to_90'], stats['seeds'], zero_shot)} | "
-                f"{format_estimate(stats['final_success'])} | {_spread(distances, 3)} | {improvement} | {pace} | "
+                f"{mean}{format_estimate(stats['final_success'])} | {_spread(distances, 3)} | {improvement} | {pace} | "
                 f"{comparison['verdict'] if comparison else ''} |"
             )
             pair = ""
@@ -175,7 +193,7 @@ def table(run_dirs: list[Path], episodes: int = 10, reps: int = REPS) -> str:
 def main(argv: list[str] | None = None) -> None:
     """Print the results table of the challenge runs under ROOT."""
     parser = argparse.ArgumentParser(prog="python -m sb3_pilot.experiments.pairs", description=__doc__)
-    parser.add_argument("root", nargs="?", default="zoo_runs")
+    parser.add_argument("root", nargs="?", default="runs", help="the challenges' output root (committed results: zoo_runs)")
     parser.add_argument("challenges", nargs="*", help="challenge folders under ROOT (default: every one with a summary)")
     parser.add_argument("--episodes", type=int, default=10, help="episodes per final model for the final distance")
     parser.add_argument("--reps", type=int, default=REPS, help="bootstrap replications of the intervals")
@@ -184,6 +202,10 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"--episodes and --reps must be at least 1, got {args.episodes} and {args.reps}")
     root = Path(args.root)
     names = args.challenges or [name for name in BY_FOLDER if (root / name / "summary.json").exists()]
+    missing = [name for name in names if not (root / name / "summary.json").exists()]
+    if not names or missing:
+        where = ", ".join(str(root / name) for name in missing) or f"any challenge folder of {root}"
+        parser.error(f"no summary.json in {where} (a challenge writes one: python -m sb3_pilot.experiments.challenges)")
     print(table([root / name for name in names], args.episodes, args.reps))
 
 

@@ -1,12 +1,13 @@
 """
-Pictures of a challenge run: ``python -m sb3_pilot.experiments.plots zoo_runs/<challenge> [more folders]``.
+Pictures of a challenge run: ``python -m sb3_pilot.experiments.plots runs/<challenge> [more folders]``.
 
 Reads ``summary.json`` (written by ``python -m sb3_pilot.experiments.challenges``) and writes, next to it:
 
 - ``success.png``: success rate vs env steps on the target task, per method the interquartile mean over seeds and its
-  stratified-bootstrap 95% interval at each evaluation (``rliable``), the legend giving the IQM of the area under
-  the success curve with its interval (a zero-shot method, evaluated after 0 target steps, is a horizontal line),
-  and beside it the final distance to the goal of the same evaluations (mean, min-max band), where they recorded it;
+  stratified-bootstrap 95% interval at each evaluation (``rliable``; under 4 seeds the IQM cuts none: the mean),
+  the legend giving the IQM of the area under the success curve with its interval (a zero-shot method, evaluated
+  after 0 target steps, is a horizontal line), and beside it the final distance to the goal of the same evaluations
+  (mean, min-max band), where they recorded it;
 - ``plan_error.png``: UDPO's ``rollout/plan_error`` (mean squared error between the planned and the reached next
   state, the paper's "pred-real MSE") over training, from each UDPO stage's ``progress.csv``;
 - ``landmarks.png`` (challenges with a planner distilled on ``Pilot/Maze2D-v0``): the paper's Fig. 1 analogue,
@@ -35,7 +36,7 @@ from matplotlib.patches import Circle, Rectangle
 from sb3_pilot.distill import GoalPlanner
 from sb3_pilot.envs import UMAZE_MAP, UMAZE_SCALING, register_envs, umaze_cell_to_xy
 from sb3_pilot.envs.maze import MAZE_DISTANCE_THRESHOLD
-from sb3_pilot.experiments.statistics import method_statistics, pointwise_iqm
+from sb3_pilot.experiments.statistics import aggregate_name, method_statistics, pointwise_iqm
 
 MAZE_SOURCE = "Pilot/Maze2D-v0"
 
@@ -66,8 +67,9 @@ def plot_success(summary: dict[str, Any], path: Path) -> None:
                 values = np.repeat(values, 2, axis=1)
             if key == "success_rate":
                 center, (low, high) = pointwise_iqm(values)
-                area = method_statistics(result["runs"])["area"]
-                label = f"{method}\narea IQM {area['value']:.2f} [{area['ci'][0]:.2f}, {area['ci'][1]:.2f}]"
+                stats = method_statistics(result["runs"])
+                area = stats["area"]
+                label = f"{method}\narea {stats['aggregate']} {area['value']:.2f} [{area['ci'][0]:.2f}, {area['ci'][1]:.2f}]"
             else:
                 center, low, high, label = values.mean(axis=0), values.min(axis=0), values.max(axis=0), method
             (line,) = ax.plot(steps, center, label=label, linestyle="--" if n_points == 1 else "-")
@@ -84,7 +86,9 @@ def plot_success(summary: dict[str, Any], path: Path) -> None:
         ),
         fontsize=9,
     )
-    axes[0, 0].legend(fontsize=7, title="IQM over seeds, band: its 95% bootstrap interval", title_fontsize=7)
+    aggregate = aggregate_name(min(len(result["runs"]) for result in summary["methods"].values()))
+    title = f"{'IQM' if aggregate == 'IQM' else 'mean (IQM of under 4 seeds)'} over seeds, band: its 95% bootstrap interval"
+    axes[0, 0].legend(fontsize=7, title=title, title_fontsize=7)
     _save(fig, path)
 
 
@@ -264,7 +268,7 @@ def plot_challenge(run_dir: str | Path) -> list[Path]:
 def main(argv: list[str] | None = None) -> None:
     """``python -m sb3_pilot.experiments.plots RUN_DIR [RUN_DIR ...]``."""
     parser = argparse.ArgumentParser(prog="python -m sb3_pilot.experiments.plots", description=__doc__.split("\n\n")[0])
-    parser.add_argument("run_dirs", nargs="+", help="challenge folders holding a summary.json (zoo_runs/<challenge>)")
+    parser.add_argument("run_dirs", nargs="+", help="challenge folders holding a summary.json (runs/<challenge>)")
     for run_dir in parser.parse_args(argv).run_dirs:
         plot_challenge(run_dir)
 

@@ -11,8 +11,15 @@ Statistics of a challenge's learning curves that can tell a gain from seed noise
 each with its stratified-bootstrap 95% interval. Each PILoT method is compared with SAC+HER on the area: the
 probability of improvement ``P(area_PILoT > area_HER)`` and the gain ``IQM(area_PILoT) - IQM(area_HER)``, with their
 bootstrap intervals (seeds of the two methods resampled independently), and on the pace: the ratio
-``IQM(steps_to_90_PILoT) / IQM(steps_to_90_HER)`` with its interval (a censored seed makes its side's IQM a bound). The
-verdict is "confirmed" only when the interval of the gain excludes 0 (lies above it).
+``IQM(steps_to_90_PILoT) / IQM(steps_to_90_HER)`` with its interval (a censored seed makes its side's IQM a bound).
+
+The verdict (:func:`verdict`) counts seeds: "confirmed" needs at least :data:`CONFIRM_SEEDS` seeds per method and an
+interval of the gain above 0 ("worse than SAC+HER": below 0); with fewer, a gain is at most "a hint", and under
+:data:`MIN_SEEDS` there is no verdict. The IQM cuts ``int(n / 4)`` runs at each end (SciPy's ``trim_mean``, which
+rliable calls): under 4 seeds it cuts none and is the plain mean, which ``aggregate`` says (:func:`aggregate_name`).
+A method's ``sources`` (in the summary, when its runner recorded them) is the number of distinct stages its seeds
+read from (a trained source per seed, or one shipped source for all): seeds that share one source leave the
+source's own variance out of the interval.
 """
 
 from __future__ import annotations
@@ -33,6 +40,35 @@ CONFIDENCE = 0.95
 REPS = 2000
 #: Fewer seeds than this per method: no verdict (a bootstrap over one or two seeds has no width to speak of).
 MIN_SEEDS = 3
+#: Fewer seeds than this per method: at most "a hint" (complete separation of 3 runs against 3 is p = 0.05 at best,
+#: and a percentile bootstrap over 3 values gives intervals that are too narrow).
+CONFIRM_SEEDS = 5
+#: The fraction of runs the IQM cuts at each end (rliable's ``aggregate_iqm``: ``scipy.stats.trim_mean``).
+IQM_CUT = 0.25
+
+
+def aggregate_name(runs: int) -> str:
+    """
+    ``"IQM"``, or ``"mean"`` where the IQM of ``runs`` values cuts none (``int(IQM_CUT * runs) == 0``: under 4 runs).
+
+    :param runs: the number of runs (seeds) aggregated
+    """
+    return "IQM" if int(IQM_CUT * runs) > 0 else "mean"
+
+
+def format_seeds(seeds: int, sources: int | None) -> str:
+    """
+    A method's seed count and its number of distinct sources: ``3 (3 sources)``, ``3 (1 source)``; ``3`` alone for a
+    method that reads no source (from scratch), ``3 (sources unknown)`` for a summary that did not record them.
+
+    :param seeds: its seeds
+    :param sources: its distinct sources (0: none; None: not recorded)
+    """
+    if sources == 0:
+        return str(seeds)
+    if sources is None:
+        return f"{seeds} (sources unknown)"
+    return f"{seeds} ({sources} source{'s' * (sources != 1)})"
 
 
 def run_scores(timesteps: Sequence[int], success_rate: Sequence[float], censored_at: float | None = None) -> dict[str, float]:
@@ -145,13 +181,13 @@ def method_statistics(
     :param seed: the bootstrap's random seed
     :param reps: bootstrap replications
     :param censored_at: every run's censoring step (:func:`run_scores`; None: each run's own)
-    :return: ``{"seeds": n, metric: {"value", "ci"}, ...}``; the steps' entries also hold ``reached`` and
-        ``censored_at``
+    :return: ``{"seeds": n, "aggregate": "IQM" or "mean", metric: {"value", "ci"}, ...}`` (:func:`aggregate_name`);
+        the steps' entries also hold ``reached`` and ``censored_at``
     """
     if not runs:
         raise ValueError("No runs to aggregate.")
     per_run = [run_scores(run["timesteps"], run["success_rate"], censored_at) for run in runs]
-    result: dict[str, Any] = {"seeds": len(runs)}
+    result: dict[str, Any] = {"seeds": len(runs), "aggregate": aggregate_name(len(runs))}
     for metric in METRICS:
         values = np.array([scores[metric] for scores in per_run])
         result[metric] = _interval(values, iqm, seed, reps)
@@ -164,7 +200,10 @@ def method_statistics(
 
 def verdict(gain: dict[str, Any], seeds: int) -> str:
     """
-    The verdict on "the PILoT method learns the target faster than SAC+HER" from the gain in area.
+    The verdict on "the PILoT method learns the target faster than SAC+HER" from the gain in area: "confirmed"
+    when its interval lies above 0 on at least :data:`CONFIRM_SEEDS` seeds per method, "worse than SAC+HER" when it
+    lies below 0 on as many; "a hint" when only the estimate is above 0, or the interval on fewer seeds; "no gain
+    shown" otherwise; no verdict under :data:`MIN_SEEDS` seeds.
 
     :param gain: ``{"value", "ci"}`` of ``IQM(area_PILoT) - IQM(area_HER)``
     :param seeds: the fewest seeds of the two methods
@@ -173,10 +212,11 @@ def verdict(gain: dict[str, Any], seeds: int) -> str:
     interval = f"area gain {value:+.2f} [{low:+.2f}, {high:+.2f}]"
     if seeds < MIN_SEEDS:
         return f"too few seeds ({seeds}) for a verdict: {interval}"
+    few = f"{seeds} seeds per method ({CONFIRM_SEEDS} needed)"
     if low > 0:
-        return f"confirmed: {interval}"
+        return f"confirmed: {interval}" if seeds >= CONFIRM_SEEDS else f"a hint: {interval} above 0 on {few}"
     if high < 0:
-        return f"worse than SAC+HER: {interval}"
+        return f"worse than SAC+HER: {interval}" if seeds >= CONFIRM_SEEDS else f"no gain shown: {interval} below 0 on {few}"
     if value > 0:
         return f"a hint: {interval} includes 0"
     return f"no gain shown: {interval}"
@@ -199,7 +239,7 @@ def compare(
     :param censored_at: every run's censoring step (:func:`run_scores`; None: each run's own)
     :return: ``probability_of_improvement``, ``area_gain`` and ``steps_to_90_ratio`` (``{"value", "ci"}``; the ratio
         is the IQM of PILoT's steps to 90% over HER's, censored seeds included, None when no seed of either reached
-        90%) and ``verdict``
+        90%), ``seeds`` (``{"method": n, "baseline": n}``) and ``verdict``
     """
     pilot_scores, her_scores = (
         [run_scores(run["timesteps"], run["success_rate"], censored_at) for run in runs] for runs in (pilot_runs, her_runs)
@@ -222,14 +262,16 @@ def compare(
         "probability_of_improvement": _interval([pilot, her], improvement, seed, reps),
         "area_gain": area_gain,
         "steps_to_90_ratio": _interval([pilot_steps, her_steps], ratio, seed, reps) if reached else None,
+        "seeds": {"method": len(pilot), "baseline": len(her)},
         "verdict": verdict(area_gain, min(len(pilot), len(her))),
     }
 
 
 def summary_statistics(summary: dict[str, Any], baseline: str, seed: int = 0, reps: int = REPS) -> dict[str, Any]:
     """
-    The statistics of a challenge's ``summary.json``: every method's, and every other method compared with
-    ``baseline`` (SAC+HER) when the challenge has it.
+    The statistics of a challenge's ``summary.json``: every method's (:func:`method_statistics`, with the number of
+    distinct sources its seeds read from where the summary records it, else None), and every other method compared
+    with ``baseline`` (SAC+HER) when the challenge has it (:func:`compare`).
 
     :param summary: the summary
     :param baseline: the method the others are compared with
@@ -247,7 +289,10 @@ def summary_statistics(summary: dict[str, Any], baseline: str, seed: int = 0, re
         "confidence": CONFIDENCE,
         "reps": reps,
         "bootstrap_seed": seed,
-        "methods": {method: method_statistics(result["runs"], seed, reps) for method, result in methods.items()},
+        "methods": {
+            method: {**method_statistics(result["runs"], seed, reps), "sources": result.get("sources")}
+            for method, result in methods.items()
+        },
         "comparisons": comparisons,
     }
 

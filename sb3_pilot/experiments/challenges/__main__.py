@@ -1,6 +1,9 @@
 """
-``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N [--root zoo_runs] [--plot]
-[--jobs N | --backend ray [--ray-address ADDR]] [--threads T] [--reuse-shipped] [--stages NAME ...]``.
+``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N [--root runs] [--plot]
+[--jobs N | --backend ray [--ray-address ADDR]] [--threads T] [--reuse-shipped] [--stages NAME ...] [--no-progress]``.
+
+On a terminal it shows a live table of the running stages (env steps, elapsed, ETA); otherwise plain lines. Each
+stage's output goes to ``stage.log`` in its folder, a zoo stage's command line to ``command.txt``.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import sys
 from sb3_pilot.experiments.challenges.backends import BACKENDS, StageFailed
 from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, REUSE_SHIPPED, only_stages
 from sb3_pilot.experiments.challenges.runner import run_challenge
+from sb3_pilot.experiments.challenges.stages import ShippedFileMissing
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -27,9 +31,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--seeds", type=int, default=1, help="number of seeds: N runs seeds 0 .. N-1 (--seeds 1 is seed 0 alone)"
     )
-    parser.add_argument("--root", default="zoo_runs", help="output root: writes ROOT/CHALLENGE/")
+    parser.add_argument("--root", default="runs", help="output root: writes ROOT/CHALLENGE/")
     parser.add_argument("--plot", action="store_true", help="render the PNGs afterwards (sb3_pilot.experiments.plots)")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bars (in the stages' logs)")
+    parser.add_argument(
+        "--no-progress", action="store_true", help="plain lines even on a terminal (no live table of the running stages)"
+    )
     parser.add_argument("-v", "--verbose", type=int, default=0, help="1: the zoo's and SB3's logs (in the stages' logs)")
     parser.add_argument(
         "--jobs", type=int, default=1, help="local backend: up to N stages at once on this machine (independent ones)"
@@ -81,14 +87,14 @@ def main(argv: list[str] | None = None) -> None:
                 args.budget,
                 seeds=range(args.seeds),
                 root=args.root,
-                progress=not args.no_progress and sys.stdout.isatty(),
+                progress=False if args.no_progress else None,
                 verbose=args.verbose,
                 jobs=args.jobs,
                 backend=args.backend,
                 ray_address=args.ray_address,
                 threads=args.threads,
             )
-        except StageFailed as error:
+        except (StageFailed, ShippedFileMissing) as error:
             sys.exit(f"{challenge.name}: {error}")
         if args.plot:
             from sb3_pilot.experiments.plots import plot_challenge

@@ -3,10 +3,10 @@ Execution backends of the challenge runner: the stages of a challenge as a graph
 the stages it reads from), run by up to ``jobs`` processes on this machine or as Ray tasks.
 
 Every stage runs in a process of its own (``python -c ...stage_process_main``): its stdout and stderr go to
-``stage.log`` in its folder, it uses ``ctx.threads`` torch / OpenMP threads (1 unless told otherwise, so that N
-stages on N cores do not fight), it writes its marker when it succeeds and dies with the process that started
-it. A failed stage raises :class:`StageFailed` (its key and its log's tail) after the stages still running have
-been stopped.
+``stage.log`` in its folder (a zoo stage's command line to ``command.txt`` too), it uses ``ctx.threads`` torch /
+OpenMP threads (1 unless told otherwise, so that N stages on N cores do not fight), it writes its marker when it
+succeeds and dies with the process that started it. A failed stage raises :class:`StageFailed` (its key and its
+log's tail) after the stages still running have been stopped.
 
 - ``local`` (``--jobs N``): a dependency-aware submit loop over :mod:`subprocess`, at most N stages at once.
 - ``ray`` (``--backend ray [--ray-address ADDR]``): every stage a Ray task declaring ``ctx.threads`` CPUs, its
@@ -33,7 +33,7 @@ from typing import Any
 
 import cloudpickle
 
-from sb3_pilot.experiments.challenges.stages import STAGE_LOG, STAGE_MARKER, Stage, StageContext
+from sb3_pilot.experiments.challenges.stages import STAGE_COMMAND, STAGE_LOG, STAGE_MARKER, Stage, StageContext, ZooTrain
 
 #: The backends of :func:`~sb3_pilot.experiments.challenges.run_challenge`.
 BACKENDS = ("local", "ray")
@@ -95,9 +95,14 @@ class StageTask:
         return self.stage_dir / STAGE_LOG
 
 
-#: Called when a stage starts, and when it finishes (with its marker).
+#: Called when a stage starts, when it finishes (with its marker), and at every look at the running stages.
 OnStart = Callable[[StageTask], None]
 OnFinish = Callable[[StageTask, dict[str, Any]], None]
+OnTick = Callable[[], None]
+
+
+def _nothing() -> None:
+    """The default :data:`OnTick`."""
 
 
 def log_tail(path: Path, lines: int = TAIL_LINES) -> str:
@@ -179,13 +184,19 @@ def stage_process_main() -> None:
 
     th.set_num_threads(task.ctx.threads)
     print(f"[{task.key}] {task.stage.describe(task.ctx, task.stage_dir)}", flush=True)
+    if isinstance(task.stage, ZooTrain):
+        command = task.stage.command(task.ctx, task.stage_dir)
+        (task.stage_dir / STAGE_COMMAND).write_text(command + "\n")
+        print(command, flush=True)
     start = time.perf_counter()
     task.stage.run(task.ctx, task.stage_dir)
     marker = {"config_hash": task.digest, "config": task.config, "wall_time_s": time.perf_counter() - start}
     (task.stage_dir / STAGE_MARKER).write_text(json.dumps(marker, indent=2, default=str))
 
 
-def run_local(tasks: Sequence[StageTask], jobs: int, on_start: OnStart, on_finish: OnFinish) -> None:
+def run_local(
+    tasks: Sequence[StageTask], jobs: int, on_start: OnStart, on_finish: OnFinish, on_tick: OnTick = _nothing
+) -> None:
     """
     Run stages on this machine, at most ``jobs`` at once, each once the stages it reads from have finished.
 
@@ -193,6 +204,7 @@ def run_local(tasks: Sequence[StageTask], jobs: int, on_start: OnStart, on_finis
     :param jobs: how many stages may run at once
     :param on_start: called when a stage starts
     :param on_finish: called when a stage finishes
+    :param on_tick: called every :data:`POLL_S` while stages run
     :raise StageFailed: when a stage fails (the others still running are stopped first)
     """
     if jobs < 1:
@@ -213,6 +225,7 @@ def run_local(tasks: Sequence[StageTask], jobs: int, on_start: OnStart, on_finis
             if not running:
                 raise ValueError(f"Stages wait for stages that never run: {[task.key for task in pending]}")
             time.sleep(POLL_S)
+            on_tick()
             for key, (task, process) in list(running.items()):
                 code = process.poll()
                 if code is None:
@@ -254,7 +267,9 @@ def _ray_stage(task: StageTask, *needs: dict[str, Any]) -> dict[str, Any]:
     return read_marker(task)
 
 
-def run_ray(tasks: Sequence[StageTask], address: str | None, on_start: OnStart, on_finish: OnFinish) -> None:
+def run_ray(
+    tasks: Sequence[StageTask], address: str | None, on_start: OnStart, on_finish: OnFinish, on_tick: OnTick = _nothing
+) -> None:
     """
     Run stages as Ray tasks: each declares ``ctx.threads`` CPUs and gets the stages it reads from as object
     references. Without ``address`` and without a running Ray, ``ray.init()`` starts a local cluster (this
@@ -264,6 +279,7 @@ def run_ray(tasks: Sequence[StageTask], address: str | None, on_start: OnStart, 
     :param address: a Ray cluster's address (``ray.init(address=...)``), e.g. ``auto`` or ``ray://HEAD:10001``
     :param on_start: called when a stage is seen running (its ``stage.log`` exists)
     :param on_finish: called when a stage finishes
+    :param on_tick: called about every second while stages run
     :raise StageFailed: when a stage fails (the other tasks are cancelled first, which stops their processes)
     """
     try:
@@ -292,6 +308,7 @@ def run_ray(tasks: Sequence[StageTask], address: str | None, on_start: OnStart, 
     try:
         while waiting:
             done, waiting = ray.wait(waiting, num_returns=1, timeout=1.0)
+            on_tick()
             for ref in waiting:  # a task has started once it has opened its log (the folder was cleared before)
                 if by_ref[ref].key not in seen and by_ref[ref].log.exists():
                     seen.add(by_ref[ref].key)

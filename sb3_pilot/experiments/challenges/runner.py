@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
-import time
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -14,15 +14,20 @@ import torch as th
 
 from sb3_pilot.experiments.challenges.backends import BACKENDS, StageTask, run_local, run_ray
 from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, HER, Challenge
+from sb3_pilot.experiments.challenges.display import RunDisplay, stage_name
 from sb3_pilot.experiments.challenges.stages import (
+    PROGRESS_CSV,
+    STAGE_COMMAND,
+    STAGE_LOG,
     STAGE_MARKER,
     Budget,
     Guidance,
     StageContext,
+    ZooTrain,
     config_hash,
     portable,
 )
-from sb3_pilot.experiments.statistics import MIN_SEEDS, summary_statistics
+from sb3_pilot.experiments.statistics import MIN_SEEDS, aggregate_name, format_seeds, summary_statistics
 
 #: Success rates whose first crossing the summary reports (``steps_to_50``, ``steps_to_90``).
 THRESHOLDS = (0.5, 0.9)
@@ -41,12 +46,43 @@ def steps_to(timesteps: Sequence[int], success_rate: Sequence[float]) -> dict[st
     }
 
 
+def count_sources(
+    challenge: Challenge, method_stage: str, stages: dict[str, dict[str, Any]], seeds: Sequence[int]
+) -> int | None:
+    """
+    The number of distinct sources a stage's seeds read from: the stages without inputs that it reads from, directly or
+    through others (one trained per seed, or one shipped file for every seed), told apart by their configuration hash.
+
+    :param challenge: the challenge
+    :param method_stage: the stage's name (a compared method's)
+    :param stages: ``summary.json``'s ``stages`` (or the stage markers) by ``seed_<k>/<stage>``, with ``config_hash``
+    :param seeds: its seeds
+    :return: 0 for a stage that reads from none; None where the challenge has no such stage or a source is not recorded
+    """
+    by_name = {stage.name: stage for stage in challenge.stages}
+    if method_stage not in by_name:
+        return None
+    roots: set[str] = set()
+    todo = list(by_name[method_stage].needs)
+    while todo:
+        name = todo.pop()
+        needs = by_name[name].needs if name in by_name else ()
+        todo.extend(needs)
+        if not needs:
+            roots.add(name)
+    if not roots:
+        return 0
+    sources = {tuple(stages.get(f"seed_{seed}/{root}", {}).get("config_hash") for root in sorted(roots)) for seed in seeds}
+    return None if any(None in hashes for hashes in sources) else len(sources)
+
+
 def summarize(
     challenge: Challenge, budget: Budget, seeds: Sequence[int], out_dir: Path, markers: dict[str, dict[str, Any]]
 ) -> dict[str, Any]:
     """
     The challenge's results: success rate vs env steps on the target task, per compared method and seed, their
-    mean over seeds, and the steps to 50% / 90% success; for a zero-shot method, the guidance horizon and switch rule.
+    mean over seeds, the steps to 50% / 90% success and the number of distinct sources its seeds read from
+    (:func:`count_sources`); for a zero-shot method, the guidance horizon and switch rule.
 
     :param challenge: the challenge
     :param budget: the budget it ran at
@@ -77,12 +113,13 @@ def summarize(
         mean.update(steps_to(timesteps, mean["success_rate"]))
         if all(len(run.get("final_distance", ())) >= n_points for run in runs):
             mean["final_distance"] = np.mean([run["final_distance"][:n_points] for run in runs], axis=0).tolist()
-        methods[stage.method] = {"stage": stage.name, "env_id": stage.env_id, "runs": runs, "mean": mean}
+        sources = count_sources(challenge, stage.name, markers, seeds)
+        methods[stage.method] = {"stage": stage.name, "env_id": stage.env_id, "runs": runs, "mean": mean, "sources": sources}
         if isinstance(stage, Guidance):
             methods[stage.method]["guidance"] = stage.rule
     stages: dict[str, Any] = {}
     for key, marker in markers.items():
-        csv = out_dir / "models" / key / "progress.csv"
+        csv = out_dir / "models" / key / PROGRESS_CSV
         stages[key] = {
             "config_hash": marker["config_hash"],
             "wall_time_s": round(marker["wall_time_s"], 1),
@@ -182,9 +219,9 @@ def run_challenge(
     name: str | Challenge,
     budget: str | Budget = "smoke",
     seeds: Sequence[int] = (0,),
-    root: str | Path = "zoo_runs",
+    root: str | Path = "runs",
     steps: dict[str, int] | None = None,
-    progress: bool = False,
+    progress: bool | None = None,
     verbose: int = 0,
     jobs: int = 1,
     backend: str = "local",
@@ -193,16 +230,18 @@ def run_challenge(
 ) -> dict[str, Any]:
     """
     Run (or resume) a challenge: every stage for every seed, each in a process of its own (its output in
-    ``stage.log`` in its folder), a stage once the stages it reads from have finished; then write ``summary.json``
-    (also whenever all the stages of a seed have finished, so a long run shows its results as they come). The
-    summary does not depend on the backend nor on ``jobs``.
+    ``stage.log`` in its folder, a zoo stage's command line in ``command.txt``), a stage once the stages it reads from
+    have finished; then write ``summary.json`` (also whenever all the stages of a seed have finished, so a long run
+    shows its results as they come). The summary does not depend on the backend nor on ``jobs``. While it runs, it
+    shows the stages started and finished and, on a terminal, a live table of the running stages' env steps
+    (:mod:`~sb3_pilot.experiments.challenges.display`).
 
     :param name: a key of :data:`~sb3_pilot.experiments.challenges.CHALLENGES` (or a :class:`Challenge`)
     :param budget: a key of :data:`~sb3_pilot.experiments.challenges.BUDGETS` or a custom :class:`Budget`
     :param seeds: the seeds
     :param root: output root; the challenge writes into ``<root>/<name>/``
     :param steps: env steps per stage, overriding the budget's (e.g. the demo's)
-    :param progress: progress bars of the zoo and the distillation (in the stages' logs)
+    :param progress: the live table (None: when stdout is a terminal); False: plain lines
     :param verbose: 1 lets the zoo and SB3 print their logs (in the stages' logs)
     :param jobs: ``local`` backend: how many stages may run at once on this machine
     :param backend: ``local`` (this machine, ``jobs`` processes) or ``ray`` (every stage a Ray task)
@@ -233,24 +272,17 @@ def run_challenge(
     stage_steps = {**challenge.steps.get(budget.name, {}), **(steps or {})}
     fast = challenge.fast_hyperparams if budget.fast else {}
     th.set_num_threads(1)  # this process only waits for the stages' processes
-    ctx_kwargs = {"budget": budget, "steps": stage_steps, "fast_hyperparams": fast, "progress": progress}
-    tasks, markers = plan(challenge, seeds, out_dir, {**ctx_kwargs, "verbose": verbose, "threads": threads})
+    ctx_kwargs = {"budget": budget, "steps": stage_steps, "fast_hyperparams": fast, "verbose": verbose, "threads": threads}
+    tasks, markers = plan(challenge, seeds, out_dir, ctx_kwargs)
     for task in tasks:  # interrupted, or configured differently: start over (a started stage is one with a log)
         if task.stage_dir.exists():
             shutil.rmtree(task.stage_dir)
 
     keys = list(stage_graph(challenge, seeds))
     seed_keys = {seed: [key for key in keys if key.startswith(f"seed_{seed}/")] for seed in seeds}
-    running: list[str] = []
-    start = time.perf_counter()
     summarized: list[int] = []
-
-    def label(done: int | None = None) -> str:
-        done = len(markers) if done is None else done
-        return f"[{challenge.name} {budget.name} {done}/{len(keys)} {time.perf_counter() - start:.0f}s]"
-
-    def show_running() -> None:
-        print(f"{label()[:-1]} running: {', '.join(running) or '-'}]", flush=True)
+    live = sys.stdout.isatty() if progress is None else progress
+    display = RunDisplay(f"{challenge.name} {budget.name}", len(keys), live=live)
 
     def write_summary() -> dict[str, Any]:
         """The summary of the seeds whose stages have all finished (all of them at the end)."""
@@ -264,69 +296,69 @@ def run_challenge(
         return summary
 
     def on_start(task: StageTask) -> None:
-        running.append(task.key)
-        stage = task.key.split("/")[1]
-        print(f"{label()} seed {task.ctx.seed} {stage}: {task.stage.describe(task.ctx, task.stage_dir)}", flush=True)
-        show_running()
+        total = task.stage.env_steps(task.ctx) if isinstance(task.stage, ZooTrain) else None
+        display.started(task.key, task.stage.describe(task.ctx, task.stage_dir), task.stage_dir, total)
 
     def on_finish(task: StageTask, marker: dict[str, Any]) -> None:
-        if task.key in running:
-            running.remove(task.key)
         markers[task.key] = {**marker, "skipped": False}
-        stage = task.key.split("/")[1]
-        print(f"{label()} seed {task.ctx.seed} {stage}: finished in {marker['wall_time_s']:.0f} s", flush=True)
-        if running:
-            show_running()
+        display.finished(task.key, marker["wall_time_s"])
         write_summary()
 
-    for done, (key, marker) in enumerate(markers.items(), 1):
-        seed, stage = key.split("/")
-        where = ", recorded in summary.json (its models are gone)" if marker.get("from_summary") else ""
-        took = f"done ({marker['wall_time_s']:.0f} s){where}, skipped"
-        print(f"{label(done)} {seed.replace('_', ' ')} {stage}: {took}", flush=True)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    if markers:
-        write_summary()
-    where = f"Ray ({ray_address or 'local'})" if backend == "ray" else f"{jobs} job{'s' * (jobs > 1)}"
-    if tasks:
-        print(f"{label()} {len(tasks)} stage{'s' * (len(tasks) > 1)} to run, {where}, {threads} thread(s) each", flush=True)
-    if backend == "ray":
-        run_ray(tasks, ray_address, on_start, on_finish)
-    else:
-        run_local(tasks, jobs, on_start, on_finish)
+    with display:
+        for key, marker in markers.items():
+            where = ", recorded in summary.json (its models are gone)" if marker.get("from_summary") else ""
+            display.skipped(f"{stage_name(key)}: done ({marker['wall_time_s']:.0f} s){where}, skipped")
+        out_dir.mkdir(parents=True, exist_ok=True)
+        if markers:
+            write_summary()
+        where = f"Ray ({ray_address or 'local'})" if backend == "ray" else f"{jobs} job{'s' * (jobs > 1)}"
+        if tasks:
+            models = out_dir / "models"
+            shown = models.relative_to(Path.cwd()) if models.is_relative_to(Path.cwd()) else models
+            display.print(
+                f"{len(tasks)} stage{'s' * (len(tasks) > 1)} to run, {where}, {threads} thread(s) each; "
+                f"their {STAGE_LOG} and {STAGE_COMMAND} in {shown}/seed_<k>/<stage>/"
+            )
+        if backend == "ray":
+            run_ray(tasks, ray_address, on_start, on_finish, display.tick)
+        else:
+            run_local(tasks, jobs, on_start, on_finish, display.tick)
     summary = write_summary()
     if len(seeds) >= MIN_SEEDS:  # the rliable statistics (seconds of bootstrap), as ``pairs`` writes them
         summary["statistics"] = summary_statistics(summary, HER)
     (out_dir / SUMMARY).write_text(json.dumps(summary, indent=1))
-    print(f"{label()} done", flush=True)
+    display.print("done")
     print(format_table(summary))
     return summary
 
 
 def format_table(summary: dict[str, Any]) -> str:
     """
-    A markdown table of a summary: final success (mean [min, max] over seeds), steps to 50% / 90% of the mean curve
-    and, when the summary has its ``statistics`` (3 seeds or more), the IQM of the area under the success curve
-    with its 95% interval and the verdict against SAC+HER.
+    A markdown table of a summary: seeds (and distinct sources) per method, final success (mean [min, max] over
+    seeds), steps to 50% / 90% of the mean curve and, when the summary has its ``statistics`` (3 seeds or more), the
+    IQM of the area under the success curve (the mean, where the IQM cuts none) with its 95% interval and the verdict
+    against SAC+HER.
     """
     statistics = summary.get("statistics")
     lines = [
         f"{summary['challenge']} ({summary['budget']} budget, seeds {summary['seeds']}) on {summary['target_env']}",
-        "| method | env steps | final success, mean [min, max] | steps to 50% | steps to 90% |"
+        "| method | seeds (sources) | env steps | final success, mean [min, max] | steps to 50% | steps to 90% |"
         + (" area, IQM [95% CI] | verdict |" if statistics else ""),
-        "|---|---|---|---|---|" + ("---|---|" if statistics else ""),
+        "|---|---|---|---|---|---|" + ("---|---|" if statistics else ""),
     ]
     for method, result in summary["methods"].items():
         finals = [run["success_rate"][-1] for run in result["runs"]]
-        mean = result["mean"]
+        mean, seeds = result["mean"], len(result["runs"])
         line = (
-            f"| {method} | {mean['timesteps'][-1]} | {np.mean(finals):.2f} [{min(finals):.2f}, {max(finals):.2f}] | "
+            f"| {method} | {format_seeds(seeds, result.get('sources'))} | {mean['timesteps'][-1]} | "
+            f"{np.mean(finals):.2f} [{min(finals):.2f}, {max(finals):.2f}] | "
             f"{mean['steps_to_50'] or '-'} | {mean['steps_to_90'] or '-'} |"
         )
         if statistics:
             area = statistics["methods"][method]["area"]
             comparison = statistics["comparisons"].get(method)
-            line += f" {area['value']:.2f} [{area['ci'][0]:.2f}, {area['ci'][1]:.2f}] | "
+            label = "mean " if aggregate_name(seeds) == "mean" else ""
+            line += f" {label}{area['value']:.2f} [{area['ci'][0]:.2f}, {area['ci'][1]:.2f}] | "
             line += f"{comparison['verdict'] if comparison else 'baseline' if method == HER else '-'} |"
         lines.append(line)
     return "\n".join(lines)

@@ -9,7 +9,8 @@ Each stage writes into its own folder ``<root>/<challenge>/models/seed_<k>/<stag
 and, when it has finished, a marker ``stage.json`` holding the hash of its configuration (its settings and preset,
 its budget and the hashes of the stages it reads from). A stage whose marker matches is skipped on the next run; one without
 (interrupted) or with another hash is removed and run again. Each stage runs in a process of its own whose output goes to
-``stage.log`` in its folder (:mod:`sb3_pilot.experiments.challenges.backends`).
+``stage.log`` in its folder, a zoo stage's whole command line to ``command.txt`` beside it
+(:mod:`sb3_pilot.experiments.challenges.backends`).
 """
 
 from __future__ import annotations
@@ -34,12 +35,15 @@ from sb3_pilot.distill import GoalPlanner, distill_goal_planner
 from sb3_pilot.experiments.evaluation import load_final_distances
 from sb3_pilot.experiments.zoo import hyperparams_dir, register
 from sb3_pilot.transfer import LandmarkGuidance
-from sb3_pilot.udpo import UDPO
 
 #: Marker a finished stage leaves in its folder.
 STAGE_MARKER = "stage.json"
 #: The stage process's stdout and stderr, in its folder.
 STAGE_LOG = "stage.log"
+#: A zoo stage's command line, in its folder.
+STAGE_COMMAND = "command.txt"
+#: What SB3's logger writes in a zoo stage's folder while it trains (:class:`CSVLogger`), env steps included.
+PROGRESS_CSV = "progress.csv"
 #: Hyperparameters of a zoo stage computed from the outputs of earlier stages (``{stage name: path}``).
 Params = Callable[[dict[str, Path]], dict[str, Any]]
 
@@ -95,7 +99,6 @@ class StageContext:
     :param steps: env steps of each stage at this budget (None: the YAML's ``n_timesteps``)
     :param fast_hyperparams: the challenge's ``fast_hyperparams`` if the budget applies them, else empty
     :param outputs: main output file of each finished stage (model zip, planner file, result file)
-    :param progress: show progress bars
     :param verbose: verbosity of the zoo and of SB3 (0 or 1)
     :param threads: torch (and OpenMP) threads of the stage's process
     """
@@ -106,17 +109,17 @@ class StageContext:
     steps: dict[str, int | None]
     fast_hyperparams: dict[str, dict[str, Any]]
     outputs: dict[str, Path] = field(default_factory=dict)
-    progress: bool = False
     verbose: int = 0
     threads: int = 1
 
 
 class CSVLogger(BaseCallback):
     """
-    Zoo callback: SB3's logger writes ``progress.csv`` in ``folder`` (the zoo itself only logs to stdout and
-    TensorBoard), so that UDPO's ``rollout/plan_error`` can be plotted over training.
+    Zoo callback: SB3's logger writes :data:`PROGRESS_CSV` in ``folder`` (the zoo itself only logs to stdout and
+    TensorBoard), so that UDPO's ``rollout/plan_error`` can be plotted over training and the runner can show the env
+    steps done.
 
-    :param folder: where ``progress.csv`` goes
+    :param folder: where :data:`PROGRESS_CSV` goes
     :param verbose: verbosity level
     """
 
@@ -193,7 +196,13 @@ def play_episodes(
 
 
 def _env_id(model_path: Path) -> str:
-    """``Pilot/X-v0`` from the zoo's ``.../Pilot-X-v0.zip``."""
+    """
+    The task of a zoo run's model: as the run's ``args.yml`` records it (any Gymnasium ID), else ``Pilot/X-v0`` from
+    the zoo's ``.../Pilot-X-v0.zip`` (a shipped model).
+    """
+    args = model_path.parent / model_path.stem / "args.yml"
+    if args.is_file():  # the zoo writes OrderedDicts (python tags), read back as its own enjoy script does
+        return str(dict(yaml.load(args.read_text(), Loader=yaml.UnsafeLoader))["env"])
     return model_path.stem.replace("-", "/", 1)
 
 
@@ -253,11 +262,15 @@ class ZooTrain:
         conf_file = ctx.budget.conf_dir + self.conf_file
         return yaml.safe_load((hyperparams_dir() / conf_file).read_text())[self.env_id]
 
+    def env_steps(self, ctx: StageContext) -> int:
+        """The env steps it trains for: the budget's for this stage, else the conf file's ``n_timesteps``."""
+        return ctx.steps.get(self.name) or int(self.preset(ctx)["n_timesteps"])
+
     def zoo_args(self, ctx: StageContext, stage_dir: Path) -> list[str]:
-        """Arguments of ``python -m sb3_pilot.experiments.zoo`` for this stage (but verbosity and progress bar)."""
+        """Arguments of ``python -m sb3_pilot.experiments.zoo`` for this stage (but verbosity)."""
         conf_file = ctx.budget.conf_dir + self.conf_file
         entry = self.preset(ctx)
-        steps = ctx.steps.get(self.name) or int(entry["n_timesteps"])
+        steps = self.env_steps(ctx)
         layers = [
             # a buffer larger than the run is never filled: allocate (and save) only what is used
             {"buffer_size": min(int(entry["buffer_size"]), max(steps, 1000))},
@@ -273,6 +286,8 @@ class ZooTrain:
             hyperparams["policy_kwargs"] = policy_kwargs
         # HER cannot sample before an episode has ended: SB3's default (100) is too early with 4 x 500-step envs
         env_kwargs = self.env_kwargs or entry.get("env_kwargs", {})  # the zoo's --env-kwargs replace the YAML's
+        if self.env_id not in gym.registry:
+            register()  # gymnasium-robotics' own IDs, which the zoo entry registers
         episode_steps = env_kwargs.get("max_episode_steps") or gym.spec(self.env_id).max_episode_steps or 1
         first_episodes = hyperparams.get("n_envs", entry.get("n_envs", 1)) * episode_steps
         if first_episodes > hyperparams.get("learning_starts", entry.get("learning_starts", 100)):
@@ -302,14 +317,21 @@ class ZooTrain:
         return {"zoo": self.zoo_args(ctx, stage_dir), "preset": self.preset(ctx)}
 
     def describe(self, ctx: StageContext, stage_dir: Path) -> str:
-        """One line for the progress display."""
-        return f"{self.algo} on {self.env_id}: python -m sb3_pilot.experiments.zoo {shlex.join(self.zoo_args(ctx, stage_dir))}"
+        """A short line for the progress display (the whole command: :meth:`command`)."""
+        return f"{self.algo} on {self.env_id}, {self.env_steps(ctx)} env steps"
+
+    def command(self, ctx: StageContext, stage_dir: Path) -> str:
+        """The command line that runs the stage, as a shell would read it."""
+        return f"python -m sb3_pilot.experiments.zoo {shlex.join(self._argv(ctx, stage_dir))}"
+
+    def _argv(self, ctx: StageContext, stage_dir: Path) -> list[str]:
+        return [*self.zoo_args(ctx, stage_dir), "--verbose", str(ctx.verbose)]
 
     def run(self, ctx: StageContext, stage_dir: Path) -> None:
         """Train through the zoo (in this process)."""
         from sb3_pilot.experiments import zoo
 
-        zoo.main([*self.zoo_args(ctx, stage_dir), "--verbose", str(ctx.verbose), *(["--progress"] if ctx.progress else [])])
+        zoo.main(self._argv(ctx, stage_dir))
 
     def curve(self, stage_dir: Path) -> tuple[list[int], list[float]]:
         """Success rate of the zoo's evaluations (``evaluations.npz``) against env steps."""
@@ -328,11 +350,12 @@ class ZooTrain:
 @dataclass(frozen=True)
 class Distill:
     """
-    Distil the state planner of a UDPO stage (trained with ``save_replay_buffer``) into a goal planner, saved as
-    ``planner.pt``; the held-out agreement with the teacher goes to ``distill.json``.
+    Distil a teacher stage (any off-policy goal agent; a UDPO trained with ``save_replay_buffer`` for labels that read
+    its buffer) into a goal planner, saved as ``planner.pt``; the held-out agreement with the teacher goes to
+    ``distill.json``.
 
     :param name: stage name
-    :param source: the UDPO :class:`ZooTrain` stage
+    :param source: the teacher's :class:`ZooTrain` stage
     """
 
     name: str
@@ -351,21 +374,41 @@ class Distill:
         return {"source": str(ctx.outputs[self.source]), "seed": ctx.seed, **ctx.budget.distill}
 
     def describe(self, ctx: StageContext, stage_dir: Path) -> str:
-        return f"distil the goal planner of {ctx.outputs[self.source]}"
+        return f"distil the goal planner of {self.source}"
 
     def run(self, ctx: StageContext, stage_dir: Path) -> None:
-        """Load the teacher with its replay buffer, distil (its rollouts on the task options it trained with), save."""
+        """Load the teacher (with its replay buffer, if saved), distil (its rollouts on the task options it trained with),
+        save."""
         model_path = ctx.outputs[self.source]
         env_id, env_kwargs = _env_id(model_path), zoo_env_kwargs(model_path)
+        register()  # the teacher's task may be gymnasium-robotics'
         teacher, _ = load_zoo_model(model_path, env=DummyVecEnv([lambda: gym.make(env_id, **env_kwargs)]))
-        assert isinstance(teacher, UDPO)
-        teacher.load_replay_buffer(model_path.parent / "replay_buffer.pkl")
-        planner = distill_goal_planner(
-            teacher, source_task=env_id, seed=ctx.seed, progress_bar=ctx.progress, verbose=ctx.verbose, **ctx.budget.distill
-        )
+        if (model_path.parent / "replay_buffer.pkl").is_file():  # a source trained with save_replay_buffer
+            teacher.load_replay_buffer(model_path.parent / "replay_buffer.pkl")
+        planner = distill_goal_planner(teacher, source_task=env_id, seed=ctx.seed, verbose=ctx.verbose, **ctx.budget.distill)
         stage_dir.mkdir(parents=True, exist_ok=True)
         planner.save(self.output(stage_dir))
         (stage_dir / "distill.json").write_text(json.dumps(planner.metadata["holdout"], indent=2))
+
+
+class ShippedFileMissing(FileNotFoundError):
+    """A shipped file (a trained model or planner in the repository's ``zoo_runs/``) is not there: the package was
+    installed without the repository."""
+
+
+def shipped_file(path: Path) -> Path:
+    """
+    :param path: a file that comes with the repository (under ``zoo_runs/``)
+    :return: ``path``, if it is there
+    :raises ShippedFileMissing: if it is not, saying where the shipped files are
+    """
+    if not path.is_file():
+        where = path.relative_to(REPO_DIR) if path.is_relative_to(REPO_DIR) else path
+        raise ShippedFileMissing(
+            f"The shipped file {where} is not here: the shipped models and planners are in the repository's "
+            "zoo_runs/, not in the installed package. Run from a clone of the repository (pip install -e .)."
+        )
+    return path
 
 
 @dataclass(frozen=True)
@@ -390,14 +433,14 @@ class Shipped:
         return self.path
 
     def config(self, ctx: StageContext, stage_dir: Path) -> dict[str, Any]:
-        config = {"shipped": str(self.path), "sha256": hashlib.sha256(self.path.read_bytes()).hexdigest()}
+        config = {"shipped": str(self.path), "sha256": hashlib.sha256(shipped_file(self.path).read_bytes()).hexdigest()}
         stats = vecnormalize_path(self.path)
         if stats.exists():
             config["vecnormalize_sha256"] = hashlib.sha256(stats.read_bytes()).hexdigest()
         return config
 
     def describe(self, ctx: StageContext, stage_dir: Path) -> str:
-        return f"shipped {self.path}"
+        return f"shipped {self.path.name}"
 
     def run(self, ctx: StageContext, stage_dir: Path) -> None:
         """Nothing to run: the file is there (its hash was taken when planning)."""
@@ -463,8 +506,8 @@ class Guidance:
 
     def describe(self, ctx: StageContext, stage_dir: Path) -> str:
         return (
-            f"guide {ctx.outputs[self.controller].name} with the landmarks of {ctx.outputs[self.planner].name} "
-            f"(k={self.horizon}) on {self.env_id}, 0 steps"
+            f"guide {self.controller} with the landmarks of {self.planner} (k={self.horizon}) on {self.env_id}, "
+            f"{ctx.budget.eval_episodes} episodes"
         )
 
     def run(self, ctx: StageContext, stage_dir: Path) -> None:
