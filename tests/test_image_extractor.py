@@ -1,69 +1,33 @@
-"""PixelGoalExtractor reads the image and the desired goal only; PixelGoalSACPolicy trains it by the critic's loss."""
+"""
+PixelGoalExtractor reads the image and the desired goal only; PixelGoalSACPolicy trains it by the critic's loss;
+RandomShift (DrQ's augmentation) acts in training only.
+"""
 
 from __future__ import annotations
 
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 import pytest
 import torch as th
 from gymnasium import spaces
+from image_envs import SIZE, ImageGoalEnv
 from stable_baselines3 import SAC, HerReplayBuffer
 from stable_baselines3.common.preprocessing import preprocess_obs
 
-from sb3_pilot.common.torch_layers import PixelGoalExtractor, PixelGoalSACPolicy
-
-SIZE = 40  # the smallest round size NatureCNN's 8x8/4, 4x4/2, 3x3/1 convolutions accept
-
-
-class ImageGoalEnv(gym.Env):
-    """A point in [-1, 1]^2 drawn as a bright square on a SIZE x SIZE image; sparse goal reward (numpy, fast)."""
-
-    metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012
-
-    def __init__(self) -> None:
-        box2 = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
-        image = spaces.Box(0, 255, shape=(SIZE, SIZE, 3), dtype=np.uint8)
-        self.observation_space = spaces.Dict({"observation": image, "achieved_goal": box2, "desired_goal": box2})
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
-        self.position = np.zeros(2, dtype=np.float32)
-        self.goal = np.zeros(2, dtype=np.float32)
-        self.steps = 0
-
-    def _obs(self) -> dict[str, np.ndarray]:
-        image = np.zeros((SIZE, SIZE, 3), dtype=np.uint8)
-        row, col = ((self.position + 1) / 2 * (SIZE - 4)).astype(int)
-        image[row : row + 4, col : col + 4] = 255
-        return {"observation": image, "achieved_goal": self.position.copy(), "desired_goal": self.goal.copy()}
-
-    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
-        return -(np.linalg.norm(achieved_goal - desired_goal, axis=-1) > 0.2).astype(np.float32)
-
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
-        super().reset(seed=seed)
-        self.position = self.np_random.uniform(-1, 1, 2).astype(np.float32)
-        self.goal = self.np_random.uniform(-1, 1, 2).astype(np.float32)
-        self.steps = 0
-        return self._obs(), {}
-
-    def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
-        self.position = np.clip(self.position + 0.2 * np.asarray(action, dtype=np.float32), -1, 1)
-        self.steps += 1
-        obs = self._obs()
-        reward = float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], {}))
-        return obs, reward, False, self.steps >= 10, {"is_success": reward == 0.0}
+from sb3_pilot.common.torch_layers import PixelGoalExtractor, PixelGoalSACPolicy, RandomShift
+from sb3_pilot.sac import LeanSAC
 
 
-def make_sac(encoder: str, seed: int = 0) -> SAC:
-    return SAC(
+def make_sac(encoder: str, seed: int = 0, random_shift: int = 0, algo: type[SAC] = SAC) -> SAC:
+    return algo(
         PixelGoalSACPolicy,
         ImageGoalEnv(),
         replay_buffer_class=HerReplayBuffer,
         buffer_size=1000,
         learning_starts=20,
         batch_size=16,
-        policy_kwargs={"net_arch": [16, 16], "features_extractor_kwargs": {"encoder": encoder}},
+        policy_kwargs={"net_arch": [16, 16], "features_extractor_kwargs": {"encoder": encoder, "random_shift": random_shift}},
         seed=seed,
         device="cpu",
     )
@@ -153,11 +117,114 @@ def test_shared_encoder_trained_by_the_critic_only(encoder: str) -> None:
 
 
 def test_save_load(tmp_path: Any) -> None:
-    model = make_sac("paper")
+    model = make_sac("paper", random_shift=3)
     model.learn(30)
     model.save(tmp_path / "model.zip")
     loaded = SAC.load(tmp_path / "model.zip", env=ImageGoalEnv(), device="cpu")
     assert isinstance(loaded.policy, PixelGoalSACPolicy)
     assert loaded.policy.actor.features_extractor is loaded.policy.critic.features_extractor
+    # the augmentation is restored with the policy's kwargs, the target critic's copy included
+    for extractor in (loaded.policy.actor.features_extractor, loaded.policy.critic_target.features_extractor):
+        assert isinstance(extractor.augmentation, RandomShift) and extractor.augmentation.pad == 3
     obs, _ = ImageGoalEnv().reset(seed=3)
     np.testing.assert_allclose(model.predict(obs, deterministic=True)[0], loaded.predict(obs, deterministic=True)[0])
+
+
+# ---------------------------------------- DrQ's random shift
+
+
+def lit_positions(images: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+    """Row and column of the one lit pixel of each image's first channel."""
+    flat = (images[:, 0] == 1.0).flatten(1).nonzero()[:, 1]
+    return flat // images.shape[-1], flat % images.shape[-1]
+
+
+def test_random_shift_moves_by_at_most_pad() -> None:
+    """Each image moves by its own integer offset in [-pad, pad] per axis (each drawn); border pixels repeated."""
+    pad, size, row, col = 4, 20, 10, 7
+    shift = RandomShift(pad)
+    images = th.zeros(2000, 3, size, size)
+    images[:, :, row, col] = 1.0
+    shifted = shift(images)
+    assert shifted.shape == images.shape
+    assert th.equal(shifted.sum(dim=(2, 3)), th.ones(2000, 3))  # one lit pixel: copied, not interpolated
+    rows, cols = lit_positions(shifted)
+    assert set((rows - row).tolist()) == set(range(-pad, pad + 1)) == set((cols - col).tolist())
+    assert th.equal(shifted[:, 0], shifted[:, 2])  # every channel (e.g. stacked frames) shifted alike
+    # replicate padding (DrQ's): a lit top row, moved down by k, fills rows 0..k; moved up, it leaves the frame
+    top = th.zeros(2000, 1, size, size)
+    top[:, :, 0] = 1.0
+    lit_rows = shift(top)[:, 0].amax(dim=2)
+    n_lit = lit_rows.sum(dim=1).long()
+    assert set(n_lit.tolist()) == set(range(pad + 2))
+    assert th.equal(lit_rows, (th.arange(size) < n_lit[:, None]).float())
+    shift.eval()
+    assert shift(images) is images
+
+
+def test_random_shift_in_training_only() -> None:
+    """
+    predict (evaluation mode) is deterministic and unaugmented: the same actions as the same weights without the
+    augmentation; in training mode the features of one frame differ between calls, the target critic's too.
+    """
+    augmented, plain = make_sac("paper", random_shift=4), make_sac("paper", seed=1)
+    plain.policy.load_state_dict(augmented.policy.state_dict())  # no parameters added by the augmentation
+    obs, _ = ImageGoalEnv().reset(seed=2)
+    actions = [augmented.predict(obs, deterministic=True)[0] for _ in range(3)]
+    for action in actions:
+        np.testing.assert_array_equal(action, plain.predict(obs, deterministic=True)[0])
+
+    policy = augmented.policy
+    batch = {key: value.repeat(8, *[1] * (value.dim() - 1)) for key, value in policy.obs_to_tensor(obs)[0].items()}
+    features = {
+        "shared": lambda: policy.actor.extract_features(batch, policy.actor.features_extractor),
+        "target": lambda: policy.critic_target.extract_features(batch, policy.critic_target.features_extractor),
+    }
+    with th.no_grad():
+        policy.set_training_mode(True)
+        for name, extract in features.items():
+            first, second = extract(), extract()
+            assert not th.allclose(first, second), name
+            assert not th.allclose(first[0], first[1]), name  # one draw per sample, not per batch
+        assert not policy.critic_target.training  # the target's networks stay in evaluation mode
+        policy.set_training_mode(False)
+        for name, extract in features.items():
+            assert th.equal(extract(), extract()), name
+
+
+@pytest.mark.parametrize("algo", [SAC, LeanSAC])
+def test_random_shift_acts_in_train(algo: type[SAC], monkeypatch: pytest.MonkeyPatch) -> None:
+    """SB3's and the lean train() shift the observations for the actor and the critic, the next ones for the target."""
+    model = make_sac("nature", random_shift=2, algo=algo)
+    model.learn(25)  # fill the buffer past learning_starts
+    calls: list[tuple[int, bool]] = []
+    forward = RandomShift.forward
+
+    def counting(self: RandomShift, images: th.Tensor) -> th.Tensor:
+        calls.append((id(self), self.training))
+        return forward(self, images)
+
+    monkeypatch.setattr(RandomShift, "forward", counting)
+    model.train(gradient_steps=1, batch_size=8)
+    shared = id(model.policy.critic.features_extractor.augmentation)
+    target = id(model.policy.critic_target.features_extractor.augmentation)
+    # SB3: actor(s), actor(s'), target(s'), critic(s, a), critic(s, pi(s)), each its own draw, all in training mode
+    assert set(calls) == {(shared, True), (target, True)}
+    assert calls.count((shared, True)) >= 3 and calls.count((target, True)) >= 1  # s and s' for the actor, s for Q
+    if algo is SAC:
+        assert len(calls) == 5
+    calls.clear()
+    model.predict(ImageGoalEnv().reset(seed=0)[0])
+    assert calls == [(shared, False)]
+
+
+def test_random_shift_bad_input() -> None:
+    """No image entry, a shift of half the frame or more, or a negative or fractional one: a clear error."""
+    space = channel_first_space()
+    for bad in (-1, SIZE // 2, 1.5):
+        with pytest.raises(ValueError, match="random_shift must be a number of pixels"):
+            PixelGoalExtractor(space, random_shift=bad)
+    PixelGoalExtractor(space, random_shift=SIZE // 2 - 1)
+    vector = spaces.Dict({**space.spaces, "observation": spaces.Box(-1.0, 1.0, shape=(5,))})
+    with pytest.raises(ValueError, match=r"must be an image space.*random_shift augments it"):
+        PixelGoalExtractor(vector, random_shift=4)

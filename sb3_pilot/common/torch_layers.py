@@ -3,7 +3,8 @@ Features extractors (and the image policy) for the transfer targets, selectable 
 ``policy_kwargs`` / ``policy``:
 
 - :class:`PixelGoalExtractor` and :class:`PixelGoalSACPolicy`: pixel-only agents for the image tasks (the image and
-  the desired goal, never the achieved goal), trained the paper's way;
+  the desired goal, never the achieved goal), trained the paper's way, optionally with DrQ's random shifts
+  (:class:`RandomShift`);
 - :class:`GoalRelativeExtractor`: translation- and heading-invariant features for a goal-conditioned controller
   (the zero-shot Ant-Maze controller), which then acts the same anywhere in a larger map.
 """
@@ -56,6 +57,40 @@ def nature_cnn(n_channels: int) -> nn.Sequential:
     )
 
 
+class RandomShift(nn.Module):
+    """
+    DrQ's image augmentation (Kostrikov et al., 2020): each image of the batch shifted by its own random integer
+    offset of at most ``pad`` pixels along each axis, the border pixels repeated. The same as DrQ's replicate-pad by
+    ``pad`` and random crop back to the frame's size, done as one ``gather`` over the batch (exact pixel copies, no
+    interpolation). All channels of an image (e.g. stacked frames) get the same shift.
+
+    It acts in training mode only: in evaluation mode (``predict``, evaluations) it returns its input.
+
+    :param pad: the largest shift in pixels (DrQ's pad, 4 for 84x84 frames)
+    """
+
+    def __init__(self, pad: int):
+        super().__init__()
+        self.pad = pad
+
+    def forward(self, images: th.Tensor) -> th.Tensor:
+        """
+        :param images: ``(batch, channels, height, width)`` images
+        :return: the shifted images in training mode, else ``images``
+        """
+        if not self.training:
+            return images
+        n, c, h, w = images.shape
+        shifts = th.randint(-self.pad, self.pad + 1, (2, n, 1), device=images.device)
+        rows = (th.arange(h, device=images.device) + shifts[0]).clamp_(0, h - 1)
+        cols = (th.arange(w, device=images.device) + shifts[1]).clamp_(0, w - 1)
+        index = (rows[:, :, None] * w + cols[:, None, :]).view(n, 1, h * w).expand(n, c, h * w)
+        return images.reshape(n, c, h * w).gather(2, index).view(n, c, h, w)
+
+    def extra_repr(self) -> str:
+        return f"pad={self.pad}"
+
+
 def paper_cnn(n_channels: int) -> nn.Sequential:
     """The paper's convolutions (appendix, image encoder): 4 layers 3x3 with 32 channels, strides 2, 1, 1, 1."""
     layers: list[nn.Module] = []
@@ -75,13 +110,20 @@ class PixelGoalExtractor(BaseFeaturesExtractor):
     - ``encoder="paper"``: the paper's convolutions, then a linear layer of ``image_features`` units (the paper's 50)
       and LayerNorm.
 
-    From a YAML: ``policy_kwargs: "dict(features_extractor_kwargs=dict(encoder='paper'))"``.
+    With ``random_shift > 0``, the image is first shifted at random by up to that many pixels (:class:`RandomShift`,
+    DrQ's augmentation) in training mode only, a new draw at every call: the critic, the actor and (with
+    :class:`PixelGoalSACPolicy`) the target critic each see their own shifts of the observations and of the next
+    observations; ``predict`` and evaluations see the frame as it is.
+
+    From a YAML: ``policy_kwargs: "dict(features_extractor_kwargs=dict(encoder='paper', random_shift=4))"``.
 
     :param observation_space: Dict with an image ``observation`` (channel-first, as SB3 transposes it) and
         ``desired_goal``
     :param encoder: ``"nature"`` or ``"paper"``
     :param image_features: size of the image embedding (None: 256 for ``nature``, 50 for ``paper``)
     :param normalized_image: whether images are already in [0, 1] (SB3's ``normalize_images=False``)
+    :param random_shift: the largest random shift of the image in training, in pixels (DrQ: 4); 0: none. Less
+        than half the image's side.
     """
 
     def __init__(
@@ -90,19 +132,36 @@ class PixelGoalExtractor(BaseFeaturesExtractor):
         encoder: str = "nature",
         image_features: int | None = None,
         normalized_image: bool = False,
+        random_shift: int = 0,
     ):
         if encoder not in ENCODERS:
             raise ValueError(f"Unknown encoder {encoder!r}, choose one of {ENCODERS}.")
+        augmented = " (random_shift augments it)" if random_shift else ""
         if not isinstance(observation_space, spaces.Dict) or {IMAGE_KEY, GOAL_KEY} - set(observation_space.spaces):
-            raise ValueError(f"PixelGoalExtractor needs a Dict observation space with {IMAGE_KEY!r} and {GOAL_KEY!r}.")
+            raise ValueError(
+                f"PixelGoalExtractor needs a Dict observation space with an image {IMAGE_KEY!r}{augmented} and "
+                f"{GOAL_KEY!r}, got {observation_space}."
+            )
         image_space = observation_space[IMAGE_KEY]
         if not is_image_space(image_space, check_channels=False, normalized_image=normalized_image):
-            raise ValueError(f"{IMAGE_KEY!r} must be an image space (channel-first after SB3's transpose): {image_space}")
+            raise ValueError(
+                f"{IMAGE_KEY!r} must be an image space (channel-first after SB3's transpose){augmented}: {image_space}"
+            )
+        assert isinstance(image_space, spaces.Box)
+        height, width = image_space.shape[1:]
+        valid_int = isinstance(random_shift, int) and not isinstance(random_shift, bool)
+        if not valid_int or not 0 <= 2 * random_shift < min(height, width):
+            raise ValueError(
+                f"random_shift must be a number of pixels >= 0 and less than half the side of the {height}x{width} "
+                f"images, got {random_shift!r}."
+            )
         image_features = image_features or (256 if encoder == "nature" else 50)
         goal_dim = get_flattened_obs_dim(observation_space[GOAL_KEY])
         super().__init__(observation_space, features_dim=image_features + goal_dim)
         self.encoder = encoder
-        assert isinstance(image_space, spaces.Box)
+        self.random_shift = random_shift
+        # no parameters: the state dict (and loading models saved without it) is unchanged
+        self.augmentation = RandomShift(random_shift) if random_shift else None
         n_channels = image_space.shape[0]
         self.cnn = (nature_cnn if encoder == "nature" else paper_cnn)(n_channels)
         with th.no_grad():
@@ -112,8 +171,11 @@ class PixelGoalExtractor(BaseFeaturesExtractor):
         self.head = nn.Sequential(*head)
 
     def forward(self, observations: dict[str, th.Tensor]) -> th.Tensor:  # type: ignore[override]
-        image = self.head(self.cnn(observations[IMAGE_KEY]))
-        return th.cat([image, th.flatten(observations[GOAL_KEY], start_dim=1)], dim=1)
+        image = observations[IMAGE_KEY]
+        if self.augmentation is not None:
+            image = self.augmentation(image)
+        features = self.head(self.cnn(image))
+        return th.cat([features, th.flatten(observations[GOAL_KEY], start_dim=1)], dim=1)
 
 
 class _DetachedFeaturesActor(Actor):
@@ -148,6 +210,10 @@ class PixelGoalSACPolicy(SACPolicy):
     reads its features without gradient). The target critic has its own copy, updated by Polyak averaging with
     the critic's other weights and read without gradient, as in SB3.
 
+    The extractor's :class:`RandomShift` (``random_shift``) follows the policy's training mode, the target critic's
+    copy included (its networks stay in evaluation mode): in ``train()`` the target values are computed from shifted
+    next observations, as in DrQ.
+
     In an RL-Zoo YAML: ``policy: sb3_pilot.common.torch_layers.PixelGoalSACPolicy``. Same parameters as SB3's
     ``MultiInputPolicy`` for SAC, but ``features_extractor_class`` defaults to :class:`PixelGoalExtractor` and
     ``share_features_extractor`` must stay True (the sharing described above).
@@ -176,6 +242,13 @@ class PixelGoalSACPolicy(SACPolicy):
         self.critic_target = self.make_critic(features_extractor=None)
         self.critic_target.load_state_dict(self.critic.state_dict())
         self.critic_target.set_training_mode(False)
+        self._target_augmentations = [module for module in self.critic_target.modules() if isinstance(module, RandomShift)]
+
+    def set_training_mode(self, mode: bool) -> None:
+        """SB3's switch of the actor's and the critic's mode, and of the target critic's augmentation (see above)."""
+        super().set_training_mode(mode)
+        for augmentation in self._target_augmentations:
+            augmentation.train(mode)
 
     def make_actor(self, features_extractor: BaseFeaturesExtractor | None = None) -> Actor:
         actor_kwargs = self._update_features_extractor(self.actor_kwargs, features_extractor)

@@ -60,12 +60,15 @@ class FetchEnv(GoalReachingMixin, gym.Env):
     ``high_dim``: the action has 8 dimensions, mapped to the 4 of the source by
     :func:`high_dim_action_transform`, and gravity is 80% of the original (``model.opt.gravity``).
     ``image_size``: the ``observation`` entry is the uint8 ``image_size x image_size x 3`` frame rendered
-    off-screen (``IMAGE_CAMERA_CONFIG``, the target drawn in red), the goals stay 3D vectors.
+    off-screen (``IMAGE_CAMERA_CONFIG``, the target drawn in red unless ``show_target`` is False), the goals stay
+    3D vectors.
 
     :param task: ``"reach"`` or ``"push"``
     :param high_dim: use the High-Dim action dynamics and gravity
     :param image_size: None for the vector observation, else the side of the rendered image (>= 16)
     :param render_mode: ``"rgb_array"``, ``"human"`` (vector observation only) or None
+    :param show_target: whether rendered frames draw the target (False: the goal is in ``desired_goal`` only, so a
+        frame never shows another target than a relabelled goal)
     """
 
     metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}  # noqa: RUF012
@@ -76,6 +79,7 @@ class FetchEnv(GoalReachingMixin, gym.Env):
         high_dim: bool = False,
         image_size: int | None = None,
         render_mode: str | None = None,
+        show_target: bool = True,
     ):
         from gymnasium_robotics.envs.fetch.push import MujocoFetchPushEnv
         from gymnasium_robotics.envs.fetch.reach import MujocoFetchReachEnv
@@ -102,7 +106,14 @@ class FetchEnv(GoalReachingMixin, gym.Env):
         self.observation_space = goal_observation_space(obs_space, 3)
         if high_dim:
             self.fetch.model.opt.gravity[:] *= HIGH_DIM_GRAVITY_SCALE
+        if not show_target:
+            self.fetch.model.site_rgba[self.fetch.model.site("target0").id, 3] = 0.0  # MuJoCo draws no site of alpha 0
         self.image_renderer = None if image_size is None else ImageRenderer(self.fetch.model, image_size, IMAGE_CAMERA_CONFIG)
+
+    @property
+    def goal_space_id(self) -> str:  # type: ignore[override]
+        """The gripper's position (reach) or the object's (push), whatever the actions and observations."""
+        return f"Pilot/Fetch-{self.task}-xyz"
 
     @property
     def model(self) -> Any:

@@ -32,15 +32,19 @@ class ReacherEnv(GoalReachingMixin, MujocoEnv):
     goal uniform over the disk of radius 0.2 (reach: 0.21). Achieved goal: the fingertip's xy; success
     within 0.02. Observation: ``cos(q)`` (3), ``sin(q)`` (3), ``dq`` (3) and the fingertip's xy (2) = 11,
     or, with ``image_size``, an ``image_size x image_size x 3`` uint8 top-down image (the target drawn as
-    a red disk of the success radius).
+    a red disk of the success radius, unless ``show_target`` is False).
 
     :param image_size: None for the vector observation, else the side of the rendered image (>= 16)
     :param render_mode: ``"rgb_array"``, ``"human"`` (vector observation only) or None
+    :param show_target: whether rendered frames draw the target (False: the goal is in ``desired_goal`` only, so a
+        frame never shows another target than a relabelled goal)
     """
 
     metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 50}  # noqa: RUF012
+    #: the fingertip's xy, with or without image observations
+    goal_space_id = "Pilot/Reacher-fingertip-xy"
 
-    def __init__(self, image_size: int | None = None, render_mode: str | None = None):
+    def __init__(self, image_size: int | None = None, render_mode: str | None = None, show_target: bool = True):
         self.image_size = image_size
         if image_size is None:
             check_render_mode(render_mode, ("human", "rgb_array"))
@@ -59,6 +63,8 @@ class ReacherEnv(GoalReachingMixin, MujocoEnv):
             camera_name="top",
         )
         self._target_site = self.model.site("target").id
+        if not show_target:
+            self.model.site_rgba[self._target_site, 3] = 0.0  # MuJoCo draws no site of alpha 0
         self._fingertip = self.model.body("fingertip").id
         self.image_renderer = None if image_size is None else ImageRenderer(self.model, image_size, "top")
 
