@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import sys
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from gymnasium import spaces
+from gymnasium import Env, Wrapper, spaces
+
+if TYPE_CHECKING:
+    import torch as th
 
 RENDER_FIX = "install libosmesa6 and set MUJOCO_GL=osmesa (and PYOPENGL_PLATFORM=osmesa)"
 MIN_IMAGE_SIZE = 16
@@ -19,9 +23,13 @@ class GoalReachingMixin:
     A goal counts as reached when ``||achieved_goal - desired_goal|| <= distance_threshold``; the reward is
     then 0, otherwise -1. Tasks never terminate on success: episodes are truncated by the ``TimeLimit`` set
     at registration, as in gymnasium-robotics' Fetch tasks.
+
+    ``goal_space_id`` declares the task's goal space: tasks that declare the same one have goals of the same meaning in
+    the same coordinates, so a goal planner distilled on one plans for the others (None: the task's own).
     """
 
     distance_threshold: float
+    goal_space_id: str | None = None
 
     @staticmethod
     def goal_distance(achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
@@ -54,6 +62,22 @@ class GoalReachingMixin:
         """
         return self.is_success(achieved_goal, desired_goal).astype(np.float32) - 1.0
 
+    def compute_reward_torch(self, achieved_goal: th.Tensor, desired_goal: th.Tensor) -> th.Tensor:
+        """
+        :meth:`compute_reward` on tensors, on their device (a device-resident replay buffer relabels with it): the
+        same float64 distance, its squares summed in the order numpy's ``np.linalg.norm`` sums fewer than 8 of them,
+        so the rewards are equal, also at the threshold (:func:`torch_reward_twin` offers it for such goals only).
+
+        :param achieved_goal: goals of shape (batch, goal_dim)
+        :param desired_goal: goals of the same shape
+        :return: float32 tensor of shape (batch,): 0 where the goal is reached, -1 elsewhere
+        """
+        diff = achieved_goal.double() - desired_goal.double()
+        squared = diff[..., 0] * diff[..., 0]
+        for dim in range(1, diff.shape[-1]):
+            squared = squared + diff[..., dim] * diff[..., dim]
+        return (squared.sqrt() <= self.distance_threshold).float() - 1.0
+
     def compute_terminated(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> bool:
         """Reaching the goal does not end the episode."""
         return False
@@ -72,6 +96,36 @@ class GoalReachingMixin:
         """
         info = {"is_success": bool(self.is_success(obs["achieved_goal"], obs["desired_goal"]))}
         return float(self.compute_reward(obs["achieved_goal"], obs["desired_goal"], info)), info
+
+
+#: Goals of at most this size have a torch twin of ``compute_reward``: numpy sums fewer than 8 terms in order
+MAX_TWIN_GOAL_DIM = 7
+
+
+def torch_reward_twin(env: Env, goal_dim: int) -> Callable[[th.Tensor, th.Tensor], th.Tensor] | None:
+    """
+    The torch twin of the ``compute_reward`` that ``env.get_wrapper_attr("compute_reward")`` (what SB3's VecEnvs call)
+    returns, or None where there is none. There is one when that method is :class:`GoalReachingMixin`'s own, on an
+    instance whose class overrides none of ``compute_reward``, ``is_success`` and ``goal_distance``, for goals of at
+    most ``MAX_TWIN_GOAL_DIM`` entries: a wrapper or subclass that changes the reward (a reward bonus, a wall cost)
+    has no twin, and its rewards are computed by its ``compute_reward``.
+
+    :param env: the env (possibly wrapped)
+    :param goal_dim: size of the goal vectors
+    :return: ``compute_reward_torch`` of the env that computes the rewards, or None
+    """
+    owner: Any = env
+    while not hasattr(owner, "compute_reward"):
+        if not isinstance(owner, Wrapper):
+            return None
+        owner = owner.env
+    if not isinstance(owner, GoalReachingMixin) or goal_dim > MAX_TWIN_GOAL_DIM:
+        return None
+    cls = type(owner)
+    mirrored = ("compute_reward", "is_success", "goal_distance", "compute_reward_torch")
+    if any(getattr(cls, name) is not getattr(GoalReachingMixin, name) for name in mirrored):
+        return None
+    return owner.compute_reward_torch
 
 
 def goal_observation(observation: np.ndarray, achieved_goal: np.ndarray, desired_goal: np.ndarray) -> dict[str, np.ndarray]:
