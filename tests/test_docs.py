@@ -33,18 +33,18 @@ PAGES = sorted(
 )
 
 
-COMMANDS = re.compile(r"python -m (sb3_pilot[a-z0-9_.]*)")  # lower case: not a placeholder such as ...X
+COMMANDS = re.compile(r"python -m ((?:sb3_pilot|benchmarks)[a-z0-9_.]*)")  # lower case: not a placeholder such as ...X
 CONF_FILES = re.compile(r"--conf-file (?:hyperparams/)?([\w/]+\.yml)")
 
 
 def test_commands_name_what_exists() -> None:
-    """Every ``python -m sb3_pilot...`` module and ``--conf-file`` named in the docs, the README and the results folders'
-    READMEs exists (commands stay true after moves)."""
+    """Every ``python -m sb3_pilot...`` or ``python -m benchmarks...`` module and ``--conf-file`` named in the docs, the
+    README and the results folders' READMEs exists (commands stay true after moves)."""
     texts = [path.read_text() for path in [*DOCS.rglob("*.md"), *DOCS.rglob("*.rst"), *ROOT.glob("zoo_runs/**/README.md")]]
     texts = [*texts, (ROOT / "README.md").read_text()]
     modules = {module.rstrip(".") for text in texts for module in COMMANDS.findall(text)}
     conf_files = {name for text in texts for name in CONF_FILES.findall(text)}
-    assert "sb3_pilot.experiments.challenges" in modules and "cpu/udpo.yml" in conf_files
+    assert {"sb3_pilot.experiments.challenges", "benchmarks.sources"} <= modules and "cpu/udpo.yml" in conf_files
     assert [module for module in sorted(modules) if importlib.util.find_spec(module) is None] == []
     assert [name for name in sorted(conf_files) if not (ROOT / "hyperparams" / name).is_file()] == []
 
