@@ -71,7 +71,7 @@ for env_id in ("Pilot/ReacherImage-v0", "Pilot/FetchReachImage-v0"):
 EOF
 
 step "CUDA tests"
-# the tests that need CUDA (the others run in CI): captured vs eager steps, device buffers on CUDA
+# the tests that need CUDA (the others run in CI): captured vs eager steps (LeanSAC, UDPO), device buffers on CUDA
 timeout 120 python3 -m pytest -q -p no:cacheprovider -rs -k "cuda or captured or draw_in_graph" \
     tests/test_cuda_graph.py tests/test_device_buffer.py 2>&1 | tee "$OUT/cuda_tests.log"
 echo "pytest exit status ${PIPESTATUS[0]}"

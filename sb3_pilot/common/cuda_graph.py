@@ -1,7 +1,8 @@
 """
-The lean update's gradient step as one CUDA graph (``LeanSAC(..., cuda_graphs=True)``): the critic, actor and
-temperature steps with their optimizers, captured once and replayed per gradient step, with no Python and no kernel
-launch per operation; the target networks' Polyak update is a second, small graph.
+The lean update's gradient step as one CUDA graph (``LeanSAC(..., cuda_graphs=True)``, ``UDPO(..., cuda_graphs=True)``):
+the critic, actor (UDPO: state planner) and temperature steps with their optimizers, captured once and replayed per
+gradient step, with no Python and no kernel launch per operation; the target networks' Polyak update is a second, small
+graph. UDPO's periodic refits of its inverse dynamics run eagerly between two replays (``run``'s ``before_step``).
 
 How (as LeanRL captures SAC): the batch lives in static tensors (the sampled batch is copied into them), or, when the
 replay buffer is a device-resident :class:`~sb3_pilot.common.buffers.LeanHerReplayBuffer` whose rewards have a device
@@ -18,7 +19,8 @@ its numbers differ from the eager step's by the float rounding of the capturable
 corrections as device tensors). A run with ``storage="device"`` draws its batches from torch's generator, not
 numpy's, so its random stream is not that of a run with SB3's buffer. :func:`capture_fallback_reason` lists what is
 not captured (the model then runs its eager step after a warning): a model off CUDA, gSDE (its noise matrix is drawn
-between steps), n-step returns and optimizers without a capturable mode.
+between steps), n-step returns, optimizers without a capturable mode and a model's own reasons (UDPO's
+``entropy_term="linearised"``).
 """
 
 import warnings
@@ -41,7 +43,7 @@ Batch = ReplayBufferSamples | DictReplayBufferSamples
 
 
 class CapturableAlgorithm(Protocol):
-    """What :class:`CudaGraphUpdate` needs of an algorithm (``LeanSAC``; UDPO could opt in with the same methods)."""
+    """What :class:`CudaGraphUpdate` needs of an algorithm (``LeanSAC``, ``UDPO``)."""
 
     device: th.device
     replay_buffer: ReplayBuffer | None
@@ -54,15 +56,18 @@ class CapturableAlgorithm(Protocol):
     def _update_target_critics(self, gradient_step: int) -> None: ...
 
 
-def capture_fallback_reason(model: Any, optimizers: list[th.optim.Optimizer]) -> str | None:
+def capture_fallback_reason(model: Any, optimizers: list[th.optim.Optimizer], model_reason: str | None = None) -> str | None:
     """
     Why the gradient step of ``model`` cannot be captured as a CUDA graph, or None if it can.
 
     :param model: the algorithm
     :param optimizers: the optimizers its gradient step steps
+    :param model_reason: the algorithm's own reason not to capture its step, if any
     """
     if model.device.type != "cuda":
         return f"the model is on {model.device}, not a CUDA device"
+    if model_reason is not None:
+        return model_reason
     if getattr(model, "use_sde", False):
         return "gSDE draws its noise matrix between gradient steps"
     buffer_class = model.replay_buffer_class
@@ -155,14 +160,17 @@ class CudaGraphUpdate:
         self.invalidate()
 
     @classmethod
-    def for_model(cls, model: CapturableAlgorithm, optimizers: list[th.optim.Optimizer]) -> "CudaGraphUpdate | None":
+    def for_model(
+        cls, model: CapturableAlgorithm, optimizers: list[th.optim.Optimizer], model_reason: str | None = None
+    ) -> "CudaGraphUpdate | None":
         """
         The captured update of ``model``, or None (and a warning saying why) where it cannot be captured.
 
         :param model: the algorithm
         :param optimizers: the optimizers its gradient step steps
+        :param model_reason: the algorithm's own reason not to capture its step, if any
         """
-        reason = capture_fallback_reason(model, optimizers)
+        reason = capture_fallback_reason(model, optimizers, model_reason)
         if reason is not None:
             warnings.warn(f"cuda_graphs=True: {reason}, so the eager gradient step is used.", stacklevel=3)
             return None

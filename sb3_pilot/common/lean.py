@@ -5,6 +5,7 @@ with the critics as one ensemble, fused Adam, one ``foreach`` target update, the
 losses and same numbers as SB3's ``SAC.train`` (up to float rounding), fewer kernels and host reads per gradient step.
 """
 
+from collections.abc import Callable
 from typing import Any
 
 import torch as th
@@ -244,7 +245,36 @@ class LeanSACSteps:
         super().dump_logs()  # type: ignore[misc]
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "_critic_parameters", "_critic_target_parameters"]  # type: ignore[misc]
+        excluded = ["_critic_parameters", "_critic_target_parameters", "_cuda_graph_update"]
+        return [*super()._excluded_save_params(), *excluded]  # type: ignore[misc]
+
+    def _gradient_step(self, replay_data: Any, losses: LossRecorder) -> None:
+        """One gradient step of the algorithm on a batch, the target update excluded (pure tensor code)."""
+        raise NotImplementedError
+
+    def _run_gradient_steps(
+        self, gradient_steps: int, batch_size: int, before_step: Callable[[int], None] | None = None
+    ) -> None:
+        """
+        The loop of ``train``: ``gradient_steps`` times a batch, ``_gradient_step`` and the target update, replayed as
+        CUDA graphs where the algorithm captured them (``cuda_graphs``, whose losses are recorded at the log dump),
+        else eager (the losses recorded at the end).
+
+        :param gradient_steps: number of gradient steps
+        :param batch_size: minibatch size
+        :param before_step: called with the step's index before each step's batch is drawn, outside any graph
+        """
+        if self._cuda_graph_update is not None:
+            self._cuda_graph_update.run(gradient_steps, batch_size, before_step)
+            return
+        losses = LossRecorder()
+        for gradient_step in range(gradient_steps):
+            if before_step is not None:
+                before_step(gradient_step)
+            replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[attr-defined]
+            self._gradient_step(replay_data, losses)
+            self._update_target_critics(gradient_step)
+        losses.record(self.logger)  # type: ignore[attr-defined]
 
     def _update_target_critics(self, gradient_step: int) -> None:
         """SAC's target rule: Polyak averaging every ``target_update_interval`` steps, batch-norm statistics copied."""

@@ -183,18 +183,7 @@ class LeanSAC(LeanSACSteps, SAC):
     def train(self, gradient_steps: int, batch_size: int = 64) -> None:
         self.policy.set_training_mode(True)
         self._update_learning_rate(self._optimizers())
-        if self._cuda_graph_update is not None:
-            self._cuda_graph_update.run(gradient_steps, batch_size)
-        else:
-            losses = LossRecorder()
-            for gradient_step in range(gradient_steps):
-                replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
-                if self.use_sde:
-                    self.actor.reset_noise()
-                self._gradient_step(replay_data, losses)
-                self._update_target_critics(gradient_step)
-            losses.record(self.logger)
-
+        self._run_gradient_steps(gradient_steps, batch_size)
         self._n_updates += gradient_steps
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
 
@@ -207,6 +196,8 @@ class LeanSAC(LeanSACSteps, SAC):
         :param losses: where the losses are logged (a :class:`~sb3_pilot.common.lean.LossRecorder`, or the device sums
             of a captured step)
         """
+        if self.use_sde:  # a new noise matrix per step (gSDE is never captured)
+            self.actor.reset_noise()
         # Action by the current actor for the sampled states
         actions_pi, log_prob = self.action_log_prob(replay_data.observations)
         log_prob = log_prob.reshape(-1, 1)
@@ -227,4 +218,4 @@ class LeanSAC(LeanSACSteps, SAC):
         self.actor.optimizer.step()
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "_actor_parameters", "_cuda_graph_update"]
+        return [*super()._excluded_save_params(), "_actor_parameters"]

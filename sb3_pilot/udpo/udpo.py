@@ -9,7 +9,14 @@ from stable_baselines3.common.buffers import NStepReplayBuffer, ReplayBuffer
 from stable_baselines3.common.noise import ActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy
-from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, PyTorchObs, Schedule
+from stable_baselines3.common.type_aliases import (
+    DictReplayBufferSamples,
+    GymEnv,
+    MaybeCallback,
+    PyTorchObs,
+    ReplayBufferSamples,
+    Schedule,
+)
 from stable_baselines3.common.utils import (
     FloatSchedule,
     get_parameters_by_name,
@@ -19,6 +26,7 @@ from stable_baselines3.common.utils import (
 from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
 from torch.nn import functional as F
 
+from sb3_pilot.common.cuda_graph import CudaGraphUpdate
 from sb3_pilot.common.lean import LeanSACSteps, LossRecorder, check_replay_sizes
 from sb3_pilot.common.utils import check_number
 from sb3_pilot.udpo.policies import (
@@ -112,6 +120,9 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
     :param inverse_dynamics_gradient_steps: supervised gradient steps of each refit of ``I``
     :param planner_learning_rate: learning rate of ``h`` (None: ``learning_rate``)
     :param inverse_dynamics_learning_rate: learning rate of ``I`` (None: ``learning_rate``)
+    :param cuda_graphs: on CUDA, replay the gradient step (critics, ``h``, temperature, target update) as CUDA graphs,
+        ``I``'s refits eager between them: ``LeanSAC``'s switch, same semantics and fallbacks, plus one for
+        ``entropy_term="linearised"``
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
@@ -155,6 +166,7 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         verbose: int = 0,
         seed: int | None = None,
         device: th.device | str = "auto",
+        cuda_graphs: bool = False,
         _init_setup_model: bool = True,
         **removed_options: Any,
     ):
@@ -217,6 +229,7 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         self.inverse_dynamics_gradient_steps = inverse_dynamics_gradient_steps
         self.planner_learning_rate = planner_learning_rate
         self.inverse_dynamics_learning_rate = inverse_dynamics_learning_rate
+        self.cuda_graphs = cuda_graphs
         self._plan_errors: list[th.Tensor] = []
         self._rollout_plan_mean: th.Tensor | None = None
 
@@ -268,6 +281,22 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
             self.ent_coef_optimizer = th.optim.Adam([self.log_ent_coef], lr=self.lr_schedule(1))
         else:
             self.ent_coef_tensor = th.tensor(float(self.ent_coef), device=self.device)
+        self._cuda_graph_update = (
+            CudaGraphUpdate.for_model(self, self._optimizers(), self._capture_fallback_reason()) if self.cuda_graphs else None
+        )
+
+    def _optimizers(self) -> list[th.optim.Optimizer]:
+        """The optimizers of a gradient step: the critics', the state planner's and the temperature's (if learnt)."""
+        optimizers = [self.critic.optimizer, self.state_planner.optimizer]
+        if self.ent_coef_optimizer is not None:
+            optimizers.append(self.ent_coef_optimizer)
+        return optimizers
+
+    def _capture_fallback_reason(self) -> str | None:
+        """UDPO's own reason not to capture its gradient step (``cuda_graphs``), if any."""
+        if self.entropy_term == "linearised":
+            return "entropy_term='linearised' checks its Cholesky factorisation on the host"
+        return None
 
     def _drop_removed_options(self) -> None:
         """
@@ -291,52 +320,61 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
 
     def train(self, gradient_steps: int, batch_size: int = 64) -> None:
         self.policy.set_training_mode(True)
-        optimizers = [self.critic.optimizer]
-        if self.ent_coef_optimizer is not None:
-            optimizers.append(self.ent_coef_optimizer)
-        self._update_learning_rate(optimizers)
+        # h follows its own schedule
+        self._update_learning_rate([opt for opt in self._optimizers() if opt is not self.state_planner.optimizer])
         update_learning_rate(self.state_planner.optimizer, self.planner_lr_schedule(self._current_progress_remaining))
-        losses = LossRecorder()
 
-        for gradient_step in range(gradient_steps):
-            # UDPO: I is refitted before the policy update that follows it (paper section 3.1, Algorithm 1)
+        def refit_inverse_dynamics(gradient_step: int) -> None:
+            # UDPO: I is refitted before the policy update that follows it (paper section 3.1, Algorithm 1). With
+            # cuda_graphs it runs eagerly between two replays, not as a graph of its own: it runs once per Delta steps
+            # (its launches cost little), reads its loss on the host, and its optimizer updates I's parameters in place,
+            # where the captured step reads them, so the replays that follow use the refitted I
             if (self._n_updates + gradient_step) % self.inverse_dynamics_interval == 0:
                 self.train_inverse_dynamics(self.inverse_dynamics_gradient_steps, batch_size)
-            if self.policy.freeze_state_planner:
-                # A frozen h (a planner transferred from a source): pi(a | s, g) = I(a | s, h(s' | s, g)) reads neither
-                # the critics nor the temperature, which exist to train h, so they are left as they are
-                continue
-            replay_data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
 
-            # Action of the decoupled policy: a ~ I(. | s, s') at a reparameterised plan s' = h(eps; s, g), I held fixed
-            plan = self.policy.plan_and_act(replay_data.observations)
-            log_prob = plan.log_prob.reshape(-1, 1)
-
-            # Entropy coefficient (temperature) loss, log pi as entropy_term estimates it
-            ent_coef = self._entropy_coef_step(log_prob, losses)
-
-            # Critic loss (SAC's), the next action a' ~ I(. | s', s''), s'' ~ h(. | s', g)
-            with th.no_grad():
-                next_plan = self.policy.plan_and_act(replay_data.next_observations)
-            target_q_values = self._target_q_values(replay_data, next_plan.actions, next_plan.log_prob, ent_coef)
-            self._critic_step(replay_data.observations, replay_data.actions, target_q_values, losses)
-
-            # Planner loss (section 3.1): the DePG actor loss through the frozen I and critics, plus lambda times the
-            # planner's negative log-likelihood of the buffer's next state, gradients for the planner's parameters only
-            actor_loss = self._actor_loss(replay_data.observations, plan.actions, log_prob, ent_coef, losses)
-            planner_nll = self.planner_nll(plan, replay_data.next_observations)
-            planner_loss = actor_loss + self.planner_coef * planner_nll
-            losses.add("planner_nll", planner_nll)
-            losses.add("planner_loss", planner_loss)
-            self.state_planner.optimizer.zero_grad()
-            planner_loss.backward(inputs=self._planner_parameters)
-            self.state_planner.optimizer.step()
-
-            self._update_target_critics(gradient_step)
+        if self.policy.freeze_state_planner:
+            # A frozen h (a planner transferred from a source): pi(a | s, g) = I(a | s, h(s' | s, g)) reads neither the
+            # critics nor the temperature, which exist to train h, so they are left as they are
+            for gradient_step in range(gradient_steps):
+                refit_inverse_dynamics(gradient_step)
+        else:
+            self._run_gradient_steps(gradient_steps, batch_size, before_step=refit_inverse_dynamics)
 
         self._n_updates += gradient_steps
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
-        losses.record(self.logger)
+
+    def _gradient_step(self, replay_data: DictReplayBufferSamples | ReplayBufferSamples, losses: LossRecorder) -> None:
+        """
+        One step of the temperature, the critics and the state planner ``h`` on a batch (the target update and ``I``'s
+        refits excluded): pure tensor code, without host reads, which a CUDA graph captures (``cuda_graphs=True``).
+
+        :param replay_data: the batch
+        :param losses: where the losses are logged (a :class:`~sb3_pilot.common.lean.LossRecorder`, or the device sums
+            of a captured step)
+        """
+        # Action of the decoupled policy: a ~ I(. | s, s') at a reparameterised plan s' = h(eps; s, g), I held fixed
+        plan = self.policy.plan_and_act(replay_data.observations)
+        log_prob = plan.log_prob.reshape(-1, 1)
+
+        # Entropy coefficient (temperature) loss, log pi as entropy_term estimates it
+        ent_coef = self._entropy_coef_step(log_prob, losses)
+
+        # Critic loss (SAC's), the next action a' ~ I(. | s', s''), s'' ~ h(. | s', g)
+        with th.no_grad():
+            next_plan = self.policy.plan_and_act(replay_data.next_observations)
+        target_q_values = self._target_q_values(replay_data, next_plan.actions, next_plan.log_prob, ent_coef)
+        self._critic_step(replay_data.observations, replay_data.actions, target_q_values, losses)
+
+        # Planner loss (section 3.1): the DePG actor loss through the frozen I and critics, plus lambda times the
+        # planner's negative log-likelihood of the buffer's next state, gradients for the planner's parameters only
+        actor_loss = self._actor_loss(replay_data.observations, plan.actions, log_prob, ent_coef, losses)
+        planner_nll = self.planner_nll(plan, replay_data.next_observations)
+        planner_loss = actor_loss + self.planner_coef * planner_nll
+        losses.add("planner_nll", planner_nll)
+        losses.add("planner_loss", planner_loss)
+        self.state_planner.optimizer.zero_grad()
+        planner_loss.backward(inputs=self._planner_parameters)
+        self.state_planner.optimizer.step()
 
     def planner_nll(self, plan: Plan, next_observations: PyTorchObs) -> th.Tensor:
         """
