@@ -233,17 +233,47 @@ def evaluate(model: UDPO, task: str, n_episodes: int, seed: int, far: bool = Fal
     }
 
 
+def chained_paths(
+    planner: GoalPlanner, starts: np.ndarray, goals: np.ndarray, horizon: int, snap: bool | None = None
+) -> np.ndarray:
+    """
+    :param planner: the goal planner
+    :param starts: start goals, shape (goal_dim,) or (n, goal_dim)
+    :param goals: target goals, same shape
+    :param horizon: landmarks per path
+    :param snap: snap every landmark to the planner's support goals (None: ``planner.plan``'s default)
+    :return: each start followed by its ``horizon`` chained landmarks (``planner.plan``, the means), shape
+        (horizon + 1, goal_dim) or (n, horizon + 1, goal_dim)
+    """
+    starts, goals = np.asarray(starts, dtype=np.float32), np.asarray(goals, dtype=np.float32)
+    return np.concatenate([starts[..., None, :], planner.plan(starts, goals, horizon=horizon, snap=snap)], axis=-2)
+
+
+def planned_steps(paths: np.ndarray, goals: np.ndarray, success_distance: float) -> tuple[np.ndarray, np.ndarray]:
+    """
+    :param paths: paths of :func:`chained_paths`, shape (..., horizon + 1, goal_dim)
+    :param goals: their target goals, shape (..., goal_dim)
+    :param success_distance: a landmark this close to the goal reaches it
+    :return: each path's mean distance between consecutive points up to its first landmark that reaches the goal
+        (the whole path if none does), and whether one does, both of shape (...)
+    """
+    steps = np.linalg.norm(np.diff(paths, axis=-2), axis=-1)
+    near = np.linalg.norm(paths[..., 1:, :] - np.asarray(goals)[..., None, :], axis=-1) <= success_distance
+    reached = near.any(axis=-1)
+    n_steps = np.where(reached, near.argmax(axis=-1) + 1, steps.shape[-1])
+    rows = zip(steps.reshape(-1, steps.shape[-1]), n_steps.reshape(-1), strict=True)
+    return np.array([row[:count].mean() for row, count in rows]).reshape(n_steps.shape), reached
+
+
 def imagined_path(planner: GoalPlanner, task: str, snap: bool | None = None) -> dict[str, Any]:
-    start, goal = TASKS[task]["start"].astype(np.float32), TASKS[task]["goal"].astype(np.float32)
-    path = np.concatenate([start[None], planner.plan(start, goal, horizon=HORIZON, snap=snap)])
-    steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
-    near = np.flatnonzero(np.linalg.norm(path[1:] - goal, axis=1) <= SUCCESS_DISTANCE)
-    n_steps = int(near[0]) + 1 if len(near) else HORIZON
+    goal = TASKS[task]["goal"].astype(np.float32)
+    path = chained_paths(planner, TASKS[task]["start"], goal, HORIZON, snap)
+    planned_step, reached = planned_steps(path, goal, SUCCESS_DISTANCE)
     return {
-        "planned_step": float(steps[:n_steps].mean()),
+        "planned_step": float(planned_step),
         "in_walls": int((~TASKS[task]["is_free"](path[1:])).sum()),
         "wall_depth": float(wall_depth(path[1:], TASKS[task]["free_centers"], TASKS[task]["cell"]).max()),
-        "path_reaches_goal": bool(len(near)),
+        "path_reaches_goal": bool(reached),
         "path_end": path[-1].round(2).tolist(),
         "path": path.round(2).tolist(),
     }

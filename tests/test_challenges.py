@@ -119,6 +119,10 @@ def test_zero_shot_ant_maze_smoke(tmp_path: Path) -> None:
     guidance = json.loads((run_dir / "models" / "seed_0" / "pilot" / "guidance.json").read_text())
     episode = guidance["episodes"][0]
     assert len(episode["achieved_goals"]) == len(episode["landmarks"]) == 501  # reset + 500 steps
+    # the guided controller is the checkpoint chosen on open ground among the zoo's 7 and the final model
+    choice = json.loads((run_dir / "models" / "seed_0" / "chosen" / "choice.json").read_text())
+    assert [score["steps"] for score in choice["checkpoints"]] == [70, 140, 210, 280, 350, 420, 490, 500]
+    assert summary["stages"]["seed_0/pilot"]["config"]["controller"] == "<run>/models/seed_0/chosen/controller.zip"
     holdout = json.loads((run_dir / "models" / "seed_0" / "distill" / "distill.json").read_text())
     assert holdout["nll"] < holdout["nll_untrained"]
     # the maze source trains on uniform starts and goals (the zoo's --env-kwargs), as its args.yml records

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -57,6 +59,30 @@ def test_the_wall_blocks_and_the_gap_lets_through() -> None:
     assert maze.is_free(np.array([maze.sample_free(rng) for _ in range(500)])).all()
 
 
+def test_depth_open_square_and_across() -> None:
+    maze, open_square = WallMaze(), WallMaze(wall=False)
+    points = np.array([[0.0, -0.5], [0.02, -0.5], [0.0, -0.01], [1.2, 0.0], [0.5, 0.5], [0.05, -0.5]])
+    np.testing.assert_allclose(maze.depth(points), [0.05, 0.03, 0.01, 0.2, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(open_square.depth(points), [0.0, 0.0, 0.0, 0.2, 0.0, 0.0], atol=1e-12)
+    assert open_square.is_free(points).tolist() == [True, True, True, False, True, True]
+    start = np.array([-0.1, -0.5])
+    np.testing.assert_allclose(open_square.move(start, np.array([0.2, 0.1])), [0.1, -0.4])  # no wall to stop it
+    for env_id in (POINT, CAR):
+        env = gym.make(env_id, across=True)
+        for seed in range(50):
+            obs, _ = env.reset(seed=seed)
+            start, goal = obs["achieved_goal"], obs["desired_goal"]
+            assert start[1] < 0 and goal[1] < 0 and start[0] * goal[0] < 0  # below the gap, on opposite sides
+            assert min(abs(start[0]), abs(goal[0])) > 2 * maze.wall_half_width and np.abs([*start, *goal]).max() <= 0.9
+    open_car = gym.make(CAR, wall=False)
+    open_car.reset(seed=0, options={"start": (-0.5, -0.5), "goal": (0.5, -0.5)})
+    open_car.unwrapped.heading = 0.0
+    for _ in range(5):  # straight through where the wall would be
+        obs, reward, *_ = open_car.step(np.array([1.0, 0.0]))
+    np.testing.assert_allclose(obs["achieved_goal"], [0.5, -0.5], atol=1e-6)
+    assert reward == 0.0
+
+
 def test_car_drives_and_turns_as_maze2d_car_but_meets_the_wall() -> None:
     env = WallMaze2DCarEnv()
     env.reset(seed=0, options={"start": (-0.5, -0.5), "goal": (0.5, -0.5)})
@@ -109,6 +135,7 @@ def test_a_point_planner_serves_the_car_not_the_u_maze(tmp_path) -> None:
         (CAR, {"max_speed": 1.0}, "max_speed"),
         (CAR, {"max_turn": 0.0}, "max_turn"),
         (CAR, {"gap_y": -1.0}, "gap_y"),
+        (CAR, {"across": True, "gap_y": -0.95}, "across"),
     ],
 )
 def test_bad_arguments(env_id: str, kwargs: dict, match: str) -> None:
@@ -131,3 +158,13 @@ def test_wall_maze_car_challenge_smoke(tmp_path) -> None:
     assert planner.source_task == POINT and planner.metadata["teacher_num_timesteps"] == 300
     bonus = " ".join(summary["stages"]["seed_0/pilot_disp"]["config"]["zoo"])
     assert "sb3_pilot.PilotBonusWrapper" in bonus and "displacement_cosine" in bonus and "planner.pt" in bonus
+    # zero-shot: the controller trained on the open square, evaluated across the wall, guided and not
+    assert summary["stages"]["seed_0/controller"]["config"]["zoo"][-2:] == ["--env-kwargs", "wall:False"]
+    guided = summary["stages"]["seed_0/guided"]["config"]
+    assert guided["planner"].endswith("planner.pt") and guided["horizon"] == 1 and guided["env_kwargs"] == {"across": True}
+    assert summary["stages"]["seed_0/unguided"]["config"]["planner"] is None
+    for episode in json.loads((tmp_path / "wall-maze-car" / "models" / "seed_0" / "guided" / "guidance.json").read_text())[
+        "episodes"
+    ]:
+        start, goal, landmark = episode["achieved_goals"][0], episode["desired_goal"], episode["landmarks"][0]
+        assert start[1] < 0 and goal[1] < 0 and start[0] * goal[0] < 0 and landmark != goal

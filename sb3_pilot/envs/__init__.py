@@ -19,6 +19,7 @@ from sb3_pilot.envs.maze import (
     umaze_cell_to_xy,
     umaze_is_free,
 )
+from sb3_pilot.envs.wall_maze import WallMaze
 
 # id: (entry point, kwargs, episode length)
 PILOT_ENV_SPECS: dict[str, tuple[str, dict[str, Any], int]] = {
@@ -53,6 +54,7 @@ __all__ = [
     "PILOT_ENV_SPECS",
     "UMAZE_MAP",
     "UMAZE_SCALING",
+    "WallMaze",
     "register_envs",
     "sample_umaze_start_goal",
     "umaze_cell_to_xy",

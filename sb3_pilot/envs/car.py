@@ -13,17 +13,10 @@ import numpy as np
 from gymnasium import spaces
 
 from sb3_pilot.envs.core import GoalReachingMixin, check_render_mode, goal_observation, goal_observation_space
-from sb3_pilot.envs.maze import (
-    GOAL_DISTRIBUTIONS,
-    MAZE_DISTANCE_THRESHOLD,
-    UMAZE_GOAL_SPACE,
-    UMAZE_SCALING,
-    sample_umaze_start_goal,
-    umaze_move,
-)
+from sb3_pilot.envs.maze import GOAL_DISTRIBUTIONS, MAZE_DISTANCE_THRESHOLD, UMAZE_GOAL_SPACE, UMAZE_SCALING, UMazeMap
 
 
-class Maze2DCarEnv(GoalReachingMixin, gym.Env):
+class Maze2DCarEnv(UMazeMap, GoalReachingMixin, gym.Env):
     """
     ``Pilot/Maze2DCar-v0``: a unicycle (car-like) agent in the U-maze of ``Pilot/Maze2D-v0``.
 
@@ -71,14 +64,6 @@ class Maze2DCarEnv(GoalReachingMixin, gym.Env):
     def _get_obs(self) -> dict[str, np.ndarray]:
         state = np.array([*self.position, np.cos(self.heading), np.sin(self.heading)], dtype=np.float32)
         return goal_observation(state, self.position, self.goal)
-
-    def _start_and_goal(self, options: dict[str, Any] | None) -> tuple[np.ndarray, np.ndarray]:
-        """The episode's start and goal xy (Maze2D's; ``options`` unused): the map's, for a car in another map."""
-        return sample_umaze_start_goal(self.np_random, self.goal_distribution)
-
-    def _move(self, position: np.ndarray, delta: np.ndarray) -> np.ndarray:
-        """Where a move by ``delta`` from ``position`` ends (sliding along the U-maze's walls): the map's motion."""
-        return umaze_move(position, delta)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)

@@ -181,7 +181,26 @@ def umaze_move(position: np.ndarray, delta: np.ndarray) -> np.ndarray:
     return position
 
 
-class Maze2DEnv(GoalReachingMixin, gym.Env):
+class UMazeMap:
+    """
+    The U-maze as the map of a kinematic body in it (the point of ``Pilot/Maze2D-v0``, the car of
+    ``Pilot/Maze2DCar-v0``): the episode's start and goal, and where a move ends. A body in another map (the walled
+    maze's) takes that map's instead.
+    """
+
+    goal_distribution: str
+    np_random: np.random.Generator
+
+    def _start_and_goal(self, options: dict[str, Any] | None) -> tuple[np.ndarray, np.ndarray]:
+        """The episode's start and goal xy (:func:`sample_umaze_start_goal`; ``options`` unused)."""
+        return sample_umaze_start_goal(self.np_random, self.goal_distribution)
+
+    def _move(self, position: np.ndarray, delta: np.ndarray) -> np.ndarray:
+        """Where a move by ``delta`` from ``position`` ends (sliding along the walls, :func:`umaze_move`)."""
+        return umaze_move(position, delta)
+
+
+class Maze2DEnv(UMazeMap, GoalReachingMixin, gym.Env):
     """
     ``Pilot/Maze2D-v0``: a point that moves kinematically in the U-maze (pure numpy).
 
@@ -218,12 +237,13 @@ class Maze2DEnv(GoalReachingMixin, gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        self.position, self.goal = sample_umaze_start_goal(self.np_random, self.goal_distribution)
+        self.position, self.goal = self._start_and_goal(options)
         obs = self._get_obs()
         return obs, self._goal_reward_info(obs)[1]
 
     def step(self, action: np.ndarray):
-        self.position = umaze_move(self.position, self.step_size * np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0))
+        # in the action's precision (float32 from SB3's policies); Maze2D's step of 0.5 scales it exactly
+        self.position = self._move(self.position, self.step_size * np.clip(action, -1.0, 1.0))
         obs = self._get_obs()
         reward, info = self._goal_reward_info(obs)
         return obs, reward, False, False, info

@@ -1,23 +1,41 @@
 """
-A challenge stage that evaluates a trained goal-conditioned controller on a task of any package, guided by a goal
-planner's landmarks (zero-shot transfer, :class:`~sb3_pilot.LandmarkGuidance`) or unguided (its baseline): the stage
-of the ``pointmaze-to-antmaze`` challenge, whose tasks are gymnasium-robotics' own (its options, a goal map between
-the planner's task and the controller's, its ``success`` key).
+Challenge stages of a trained goal-conditioned controller, for zero-shot transfer:
+
+- :class:`ChooseCheckpoint` chooses the controller's checkpoint on held-out episodes of its own training task (no
+  episode of the task it is transferred to), by a stated rule (:func:`choose_checkpoint`);
+- :class:`ControllerEvaluation` evaluates it on a task of any package, guided by a goal planner's landmarks
+  (:class:`~sb3_pilot.LandmarkGuidance`) or unguided (its baseline): the stage of the ``pointmaze-to-antmaze``
+  challenge, whose tasks are gymnasium-robotics' own (its options, a goal map between the planner's task and the
+  controller's, its ``success`` key).
 """
 
 from __future__ import annotations
 
 import json
+import re
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
+import yaml
+from stable_baselines3.common.save_util import load_from_zip_file
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+from sb3_pilot.common.utils import check_number
 from sb3_pilot.distill import GoalMap, GoalPlanner, share_goal_space
 from sb3_pilot.envs.maze import UMAZE_GOAL_CELL, UMAZE_MAP, UMAZE_START_CELL
-from sb3_pilot.experiments.challenges.stages import Guidance, StageContext, load_zoo_model, play_episodes
+from sb3_pilot.experiments.challenges.stages import (
+    Guidance,
+    StageContext,
+    load_zoo_model,
+    play_episodes,
+    vecnormalize_path,
+    zoo_env_id,
+    zoo_env_kwargs,
+)
 from sb3_pilot.transfer import LandmarkGuidance
 
 
@@ -152,3 +170,191 @@ class ControllerEvaluation:
     # one point each, read from guidance.json as the Guidance stage's
     curve = Guidance.curve
     distances = Guidance.distances
+
+
+#: The rule :class:`ChooseCheckpoint` applies, as its ``choice.json`` states it.
+CHOICE_RULE = "highest success rate, ties to the lower mean final distance to the goal, then to the fewer env steps"
+#: :class:`ChooseCheckpoint`'s episodes of seed ``k`` are reset with :func:`play_episodes`'s seed ``k + CHOICE_SEED``
+#: (``10_000 * (k + CHOICE_SEED) + i``): none of the test episodes' (``10_000 * k + i``), nor the zoo's training seeds.
+CHOICE_SEED = 1_000
+#: The zoo's checkpoint names (its ``CheckpointCallback``'s, ``--save-freq``).
+CHECKPOINT = re.compile(r"rl_model_(\d+)_steps\.zip")
+
+
+def find_checkpoints(run_dir: Path) -> dict[int, Path]:
+    """
+    The checkpoints the zoo saved in a run folder (``--save-freq``), and its final model.
+
+    :param run_dir: the zoo's run folder (``<algo>/<env name>_<n>``)
+    :return: the models by the env steps they were saved at, sorted (the final model's steps read from its zip; a
+        checkpoint saved at the same step is the same model)
+    :raise FileNotFoundError: naming the folder, when it holds no checkpoint
+    """
+    found = {
+        int(match[1]): path for path in run_dir.glob("rl_model_*_steps.zip") if (match := CHECKPOINT.fullmatch(path.name))
+    }
+    if not found:
+        raise FileNotFoundError(
+            f"No checkpoint (rl_model_<steps>_steps.zip) in {run_dir}: its training kept none. Train the controller "
+            "stage with checkpoints (ZooTrain(..., checkpoints=N), the zoo's --save-freq)."
+        )
+    final = run_dir / f"{run_dir.name.rsplit('_', 1)[0]}.zip"
+    if final.is_file():
+        data, _, _ = load_from_zip_file(final, custom_objects={}, device="cpu")
+        found.setdefault(int(data["num_timesteps"]), final)
+    return dict(sorted(found.items()))
+
+
+def checkpoint_stats(model_path: Path, steps: int) -> Path:
+    """
+    Where the ``VecNormalize`` statistics of a zoo model are: beside a checkpoint
+    (:class:`~sb3_pilot.experiments.zoo.NormalizedCheckpointCallback`'s ``rl_model_vecnormalize_<steps>_steps.pkl``),
+    in the saved settings of a final model (:func:`vecnormalize_path`).
+
+    :param model_path: the model
+    :param steps: the env steps it was saved at
+    """
+    if CHECKPOINT.fullmatch(model_path.name):
+        return model_path.parent / f"rl_model_vecnormalize_{steps}_steps.pkl"
+    return vecnormalize_path(model_path)
+
+
+def choose_checkpoint(scores: list[dict[str, Any]]) -> dict[str, Any]:
+    """
+    :data:`CHOICE_RULE`: the highest ``success``, ties to the lower ``final_distance``, then to the fewer ``steps``.
+
+    :param scores: each checkpoint's ``steps``, ``success`` (rate) and ``final_distance`` (mean)
+    :return: the chosen checkpoint's scores
+    :raise ValueError: for no scores
+    """
+    if not scores:
+        raise ValueError("No checkpoint to choose from.")
+    return max(scores, key=lambda score: (score["success"], -score["final_distance"], -score["steps"]))
+
+
+def training_task(model_path: Path, max_episode_steps: int | None = None) -> gym.Env:
+    """
+    The task a zoo run trained on, rebuilt from its saved settings: its ID, ``env_kwargs`` and ``env_wrapper``.
+
+    :param model_path: the run's final model (its saved settings beside it)
+    :param max_episode_steps: episodes end after this many steps (None: the task's)
+    """
+    from rl_zoo3.utils import get_wrapper_class
+
+    config = model_path.parent / model_path.stem / "config.yml"
+    # the zoo writes OrderedDicts (python tags), read back as its own enjoy script does
+    hyperparams = dict(yaml.load(config.read_text(), Loader=yaml.UnsafeLoader)) if config.is_file() else {}
+    kwargs = zoo_env_kwargs(model_path) | ({"max_episode_steps": max_episode_steps} if max_episode_steps else {})
+    env = gym.make(zoo_env_id(model_path), **kwargs)
+    wrapper = get_wrapper_class(hyperparams)
+    return env if wrapper is None else wrapper(env)
+
+
+@dataclass(frozen=True)
+class ChooseCheckpoint:
+    """
+    Choose the checkpoint of a controller stage (a :class:`~sb3_pilot.experiments.challenges.stages.ZooTrain` with
+    ``checkpoints``) on held-out episodes of its own training task (:func:`training_task`), deterministic actions,
+    reset with seeds no test episode uses (:data:`CHOICE_SEED`): no episode of the task it is transferred to. Each
+    checkpoint, the final model included, gets its success rate (the task's success at the episode's last step, as
+    the zoo's evaluations count it) and mean final distance to the goal; the best by :data:`CHOICE_RULE` is copied
+    as the zoo saves a model (``controller.zip`` beside its ``controller/`` folder of saved settings and
+    ``VecNormalize`` statistics), which is what the stages naming this one evaluate. Every checkpoint's scores and
+    the choice go to ``choice.json``.
+
+    :param name: stage name
+    :param controller: the controller's stage (trained with ``checkpoints``)
+    :param episodes: held-out episodes per checkpoint; at a budget with steps for this stage (``smoke``), the budget's
+        ``eval_episodes``, each ending after that many steps
+    """
+
+    name: str
+    controller: str
+    episodes: int = 30
+    method = None
+
+    def __post_init__(self) -> None:
+        check_number(f"{self.name}: episodes", self.episodes, minimum=1, integer=True)
+
+    @property
+    def needs(self) -> tuple[str, ...]:
+        return (self.controller,)
+
+    def output(self, stage_dir: Path) -> Path:
+        """The chosen checkpoint, copied."""
+        return stage_dir / "controller.zip"
+
+    def n_episodes(self, ctx: StageContext) -> int:
+        """The episodes per checkpoint at the context's budget."""
+        return ctx.budget.eval_episodes if self.name in ctx.steps else self.episodes
+
+    def config(self, ctx: StageContext, stage_dir: Path) -> dict[str, Any]:
+        return {
+            "controller": str(ctx.outputs[self.controller]),
+            "episodes": self.n_episodes(ctx),
+            "max_episode_steps": ctx.steps.get(self.name),
+            "seed": ctx.seed + CHOICE_SEED,
+            "rule": CHOICE_RULE,
+        }
+
+    def describe(self, ctx: StageContext, stage_dir: Path) -> str:
+        return f"choose the checkpoint of {self.controller} on {self.n_episodes(ctx)} held-out episodes of its own task"
+
+    def score(self, model_path: Path, stats: Path | None, env: gym.Env, ctx: StageContext) -> dict[str, Any]:
+        """
+        A checkpoint's held-out episodes.
+
+        :param model_path: the checkpoint
+        :param stats: its ``VecNormalize`` statistics (None: the run does not normalise)
+        :param env: its training task
+        :param ctx: the stage's context
+        :return: its success rate and mean final distance to the goal, and those of each episode
+        """
+        model, _ = load_zoo_model(model_path)
+        vec_normalize = None
+        if stats is not None:
+            vec_normalize = VecNormalize.load(str(stats), DummyVecEnv([lambda: env]))
+            vec_normalize.training = False
+        successes, distances = [], []
+        for observation, info in play_episodes(model, vec_normalize, env, self.n_episodes(ctx), ctx.seed + CHOICE_SEED):
+            successes.append(reported_success(info))
+            distances.append(float(np.linalg.norm(observation["achieved_goal"] - observation["desired_goal"])))
+        return {
+            "success": float(np.mean(successes)),
+            "final_distance": float(np.mean(distances)),
+            "successes": successes,
+            "final_distances": distances,
+        }
+
+    def run(self, ctx: StageContext, stage_dir: Path) -> None:
+        """Score every checkpoint, choose by :data:`CHOICE_RULE`, copy the chosen one, write ``choice.json``."""
+        from sb3_pilot.experiments.zoo import register
+
+        register()  # the task may be gymnasium-robotics'
+        final = ctx.outputs[self.controller]
+        candidates = find_checkpoints(final.parent)  # none: the error names the folder, before any episode
+        normalized = vecnormalize_path(final).is_file()
+        stats = {steps: checkpoint_stats(path, steps) for steps, path in candidates.items()}
+        missing = [str(path) for path in stats.values() if normalized and not path.is_file()]
+        if missing:
+            raise FileNotFoundError(f"The run {final.parent} normalises its observations, but {missing} are missing.")
+        env = training_task(final, ctx.steps.get(self.name))
+        scores = []
+        for steps, path in candidates.items():
+            score = self.score(path, stats[steps] if normalized else None, env, ctx)
+            # the models as paths in the seed's folder, which may move
+            model = path.relative_to(ctx.seed_dir) if path.is_relative_to(ctx.seed_dir) else path
+            scores.append({"steps": steps, "model": str(model), **score})
+            print(f"{path.name} ({steps} steps): success {score['success']:.2f}, final distance {score['final_distance']:.2f}")
+        env.close()
+        chosen = choose_checkpoint(scores)
+        print(f"chosen: {chosen['steps']} steps ({CHOICE_RULE})")
+        output = self.output(stage_dir)
+        saved = vecnormalize_path(output).parent  # the chosen model's saved settings, as the zoo keeps a final model's
+        shutil.copytree(final.parent / final.stem, saved, ignore=shutil.ignore_patterns("vecnormalize.pkl"))
+        shutil.copyfile(candidates[chosen["steps"]], output)
+        if normalized:
+            shutil.copyfile(stats[chosen["steps"]], vecnormalize_path(output))
+        choice = {"rule": CHOICE_RULE, "episodes": self.n_episodes(ctx), "seed": ctx.seed + CHOICE_SEED}
+        choice |= {"chosen": {"steps": chosen["steps"], "model": chosen["model"]}, "checkpoints": scores}
+        (stage_dir / "choice.json").write_text(json.dumps(choice, indent=1))

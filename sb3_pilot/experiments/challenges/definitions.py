@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from sb3_pilot.envs.maze import WallMarginWrapper
-from sb3_pilot.experiments.challenges.controller import ControllerEvaluation, far_umaze_map
+from sb3_pilot.experiments.challenges.controller import ChooseCheckpoint, ControllerEvaluation, far_umaze_map
 from sb3_pilot.experiments.challenges.stages import (
     REPO_DIR,
     Budget,
@@ -363,7 +363,8 @@ CHALLENGES: dict[str, Challenge] = {
         Challenge(
             "wall-maze-car",
             "SAC+HER on the walled maze (a point) -> goal planner distilled from its steps -> HER + bonus on the walled "
-            "maze's car (speed and turn rate), vs SAC+HER",
+            "maze's car (speed and turn rate), vs SAC+HER; and its landmarks guiding a car controller of the open square "
+            "across the wall (0 walled-maze steps), vs the same controller unguided",
             "Pilot/WallMaze2DCar-v0",
             (
                 # the teacher is SAC + HER, which learns the detour round the wall where UDPO is slower
@@ -381,12 +382,41 @@ CHALLENGES: dict[str, Challenge] = {
                     method=PILOT_DISPLACEMENT,
                 ),
                 ZooTrain("her", "sac", "Pilot/WallMaze2DCar-v0", "sac.yml", method=HER),
+                # zero-shot: a car controller of the open square (the walled car's task and settings without the wall),
+                # evaluated with starts and goals on opposite sides of the wall (across=True), never trained there
+                ZooTrain("controller", "sac", "Pilot/WallMaze2DCar-v0", "sac.yml", env_kwargs={"wall": False}),
+                # k = 1: a landmark one teacher step ahead is a place the point reached from here in one straight
+                # move, so the car, which drives straight at its goal, meets no wall on the way; beyond the wall's top
+                # (a 0.1-wide wall, a U-turn) a landmark k >= 2 steps ahead (up to 0.2 per axis a step) lies across
+                # the wall in a straight line from a car below the top, where a blocked move leaves the car in place.
+                # One step is longer than the 0.1 success distance (benchmarks/wall_landmarks.py measures it), so the
+                # controller does not stop short at a landmark
+                ControllerEvaluation(
+                    "guided",
+                    "controller",
+                    "Pilot/WallMaze2DCar-v0",
+                    "PILoT zero-shot (0 walled-maze steps)",
+                    planner="distill",
+                    env_kwargs={"across": True},
+                    horizon=1,
+                    episodes=30,
+                ),
+                ControllerEvaluation(
+                    "unguided",
+                    "controller",
+                    "Pilot/WallMaze2DCar-v0",
+                    "the open-square controller unguided (0 walled-maze steps)",
+                    env_kwargs={"across": True},
+                    episodes=30,
+                ),
             ),
             steps={
-                "smoke": {"teacher": 300, "pilot_disp": 300, "her": 300},
+                "smoke": {"teacher": 300, "pilot_disp": 300, "her": 300, "controller": 300, "guided": 30, "unguided": 30},
                 # the teacher's: SAC + HER reached 90% cross-wall success on the point at ~10k steps (16 of 16 seeds).
-                # The car's: Maze-Car's 20k, to be sized from SAC+HER's own curve before any PILoT run
-                "cpu": {"teacher": 20_000, "pilot_disp": 20_000, "her": 20_000},
+                # The car's: where SAC + HER's own curve has flattened, sized before any PILoT run (past 0.5 at
+                # 3-6k, about 0.9 from 15k on, 2 seeds to 60k: zoo_runs/wall-maze-car-budget); the controller's: the
+                # her stage's
+                "cpu": {"teacher": 20_000, "pilot_disp": 15_000, "her": 15_000, "controller": 15_000},
             },
         ),
         Challenge(
@@ -399,14 +429,18 @@ CHALLENGES: dict[str, Challenge] = {
                 # gymnasium-robotics' own tasks under their own IDs: the teacher with sac.yml's PointMaze entry
                 ZooTrain("teacher", "sac", "PointMaze_UMaze-v3", "sac.yml"),
                 Distill("distill", "teacher"),
-                # the open-ground controller's recipe (cpu/ant_controller_upright.yml's) through wrappers
-                ZooTrain("controller", "sac", "AntMaze_Open-v5", "antmaze_open_controller.yml"),
+                # the open-ground controller's recipe (cpu/ant_controller_upright.yml's) through wrappers, a checkpoint
+                # kept every seventh of its steps (every 50k at the cpu budget)
+                ZooTrain("controller", "sac", "AntMaze_Open-v5", "antmaze_open_controller.yml", checkpoints=7),
+                # the checkpoint the stages below evaluate: chosen on held-out episodes of its own open-arena task (no
+                # U-maze episode), by success, ties by mean final distance
+                ChooseCheckpoint("chosen", "controller", episodes=30),
                 # an AntMaze goal is 4 times the PointMaze goal of the same place; k = 3 and the switch rule are
                 # Zero-shot Ant-Maze's, not measured here; success: gymnasium-robotics' (within 0.45), the episode
                 # ending there (continuing_task False); the controller's inputs, without contact forces
                 ControllerEvaluation(
                     "pilot",
-                    "controller",
+                    "chosen",
                     "AntMaze_UMaze-v5",
                     "PILoT zero-shot (0 U-maze steps)",
                     planner="distill",
@@ -421,7 +455,7 @@ CHALLENGES: dict[str, Challenge] = {
                 ),
                 ControllerEvaluation(
                     "unguided",
-                    "controller",
+                    "chosen",
                     "AntMaze_UMaze-v5",
                     "the controller unguided (0 U-maze steps)",
                     env_kwargs={
@@ -434,7 +468,7 @@ CHALLENGES: dict[str, Challenge] = {
                 # the controller's own task, for scale: open-arena goals of AntMaze_Open-v5 (not a compared method)
                 ControllerEvaluation(
                     "open_ground",
-                    "controller",
+                    "chosen",
                     "AntMaze_Open-v5",
                     None,
                     env_kwargs={"continuing_task": False, "include_cfrc_ext_in_observation": False},
@@ -442,7 +476,7 @@ CHALLENGES: dict[str, Challenge] = {
                 ),
             ),
             steps={
-                "smoke": {"teacher": 600, "controller": 500, "pilot": 50, "unguided": 50, "open_ground": 50},
+                "smoke": {"teacher": 600, "controller": 500, "chosen": 50, "pilot": 50, "unguided": 50, "open_ground": 50},
                 # named, not run: the teacher's is cpu/sac.yml's PointMaze budget, the controller's the upright
                 # recipe's best-guiding checkpoint on Pilot/AntLocomotion-v0
                 "cpu": {"teacher": 50_000, "controller": 350_000},
@@ -470,15 +504,20 @@ CHALLENGES: dict[str, Challenge] = {
                 ),
                 Distill("distill", "maze"),
                 # the shipped controller's recipe: starts and headings anywhere, goals 0.5-3 units away that move
-                # on, 500-step episodes ending on a flip, goal-relative inputs (zoo_runs/zero-shot-ant-maze/controller)
-                ZooTrain("controller", "sac", "Pilot/AntLocomotion-v0", "ant_controller_upright.yml"),
+                # on, 500-step episodes ending on a flip, goal-relative inputs (zoo_runs/zero-shot-ant-maze/controller);
+                # a checkpoint kept every seventh of its steps (every 50k at the cpu budget)
+                ZooTrain("controller", "sac", "Pilot/AntLocomotion-v0", "ant_controller_upright.yml", checkpoints=7),
+                # the checkpoint that is guided: chosen on held-out episodes of its own open-ground task (no Ant-Maze
+                # episode: zero-shot), by success, ties by mean final distance (neighbouring checkpoints of one run
+                # guided at 0.0 to 0.83: zoo_runs/zero-shot-ant-maze/controller_seed1/README.md)
+                ChooseCheckpoint("chosen", "controller", episodes=30),
                 # k = 3, measured on this challenge's seed-0 controller and planner (a planner distilled from the
                 # teacher's real steps, 0.42 a step): success k = 1 / 2 / 3 0.23 / 0.47 / 0.67 on seeds 0-2, k = 2 / 3
                 # / 4 0.63 / 0.63 / 0.30 on held-out seeds 3-5 (zoo_runs/zero-shot-ant-maze/README.md)
                 Guidance(
                     "pilot",
                     "distill",
-                    "controller",
+                    "chosen",
                     "Pilot/AntMaze-v0",
                     "PILoT zero-shot (0 Ant-Maze steps)",
                     horizon=3,
@@ -489,7 +528,7 @@ CHALLENGES: dict[str, Challenge] = {
                 ZooTrain("mega", "sac", "Pilot/AntMaze-v0", "sac_mega.yml", method=HER_MEGA),
             ),
             steps={
-                "smoke": {"maze": 300, "controller": 500, "her": 2100, "mega": 2100},
+                "smoke": {"maze": 300, "controller": 500, "chosen": 50, "her": 2100, "mega": 2100},
                 "cpu": {"maze": 20_000, "controller": 350_000, "her": 350_000, "mega": 350_000},
             },
         ),

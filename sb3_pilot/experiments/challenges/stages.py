@@ -31,6 +31,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+from sb3_pilot.common.utils import check_number
 from sb3_pilot.distill import GoalPlanner, distill_goal_planner
 from sb3_pilot.experiments.evaluation import load_final_distances
 from sb3_pilot.experiments.zoo import hyperparams_dir, register
@@ -153,17 +154,18 @@ def load_zoo_model(
 
     :param model_path: ``<run folder>/<env name>.zip``, or any SB3 zip with ``algo`` given
     :param env: the env to attach (needed to load the replay buffer); None loads the policy alone (no buffer)
-    :param algo: the zoo algorithm that saved it (None: the name of the run folder's parent, as the zoo lays it out)
+    :param algo: the zoo algorithm that saved it (None: as the run's ``args.yml`` records it, else the name of the run
+        folder's parent, as the zoo lays it out)
     :return: the model and its (frozen) ``VecNormalize`` or None
     """
     from rl_zoo3 import ALGOS
 
     register()  # ``udpo`` among the zoo's algorithms, in whichever process the stage runs
-    algo = algo or model_path.parent.parent.name
+    algo = algo or _zoo_algo(model_path)
     stats = vecnormalize_path(model_path)
     vec_normalize = None
     if stats.exists():
-        vec_normalize = VecNormalize.load(str(stats), env or DummyVecEnv([lambda: gym.make(_env_id(model_path))]))
+        vec_normalize = VecNormalize.load(str(stats), env or DummyVecEnv([lambda: gym.make(zoo_env_id(model_path))]))
         vec_normalize.training = False
     if env is None:  # a HER buffer cannot be built without the env: the policy alone
         custom = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}
@@ -195,7 +197,18 @@ def play_episodes(
         yield observation, info
 
 
-def _env_id(model_path: Path) -> str:
+def _zoo_algo(model_path: Path) -> str:
+    """
+    The zoo algorithm of a model: as its run's ``args.yml`` records it (a model copied with its saved settings, e.g. a
+    chosen checkpoint), else the name of the run folder's parent (``<algo>/<env name>_<n>/<env name>.zip``).
+    """
+    args = model_path.parent / model_path.stem / "args.yml"
+    if args.is_file():  # the zoo writes OrderedDicts (python tags), read back as its own enjoy script does
+        return str(dict(yaml.load(args.read_text(), Loader=yaml.UnsafeLoader))["algo"])
+    return model_path.parent.parent.name
+
+
+def zoo_env_id(model_path: Path) -> str:
     """
     The task of a zoo run's model: as the run's ``args.yml`` records it (any Gymnasium ID), else ``Pilot/X-v0`` from
     the zoo's ``.../Pilot-X-v0.zip`` (a shipped model).
@@ -239,6 +252,8 @@ class ZooTrain:
     :param env_kwargs: keyword arguments of the task (the zoo's ``--env-kwargs``), for training and evaluation
     :param eval_env_kwargs: keyword arguments of the evaluated task if they differ (the zoo's ``--eval-env-kwargs``;
         empty: ``env_kwargs``), e.g. Maze2D trained on uniform goals and evaluated on the far goal
+    :param checkpoints: models kept during training besides the final one, evenly spaced (the zoo's ``--save-freq``
+        of ``steps // checkpoints`` env steps), for a later stage that chooses among them; 0: the final model only
     """
 
     name: str
@@ -251,6 +266,10 @@ class ZooTrain:
     save_replay_buffer: bool = False
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     eval_env_kwargs: dict[str, Any] = field(default_factory=dict)
+    checkpoints: int = 0
+
+    def __post_init__(self) -> None:
+        check_number(f"{self.name}: checkpoints", self.checkpoints, minimum=0, integer=True)
 
     def output(self, stage_dir: Path) -> Path:
         """The trained model's zip."""
@@ -302,6 +321,8 @@ class ZooTrain:
         args = ["train", "--algo", self.algo, "--env", self.env_id, "--conf-file", conf_file, "-f", str(stage_dir)]
         args += ["--seed", str(ctx.seed), "-n", str(steps), "--num-threads", str(ctx.threads)]
         args += ["--eval-freq", str(max(steps // ctx.budget.n_evals, 1)), "--eval-episodes", str(ctx.budget.eval_episodes)]
+        if self.checkpoints:  # only then in the command: the other stages' hashes stay
+            args += ["--save-freq", str(max(steps // self.checkpoints, 1))]
         args += ["-params", *(f"{key}:{value!r}" for key, value in hyperparams.items())]
         if self.env_kwargs:
             args += ["--env-kwargs", *(f"{key}:{value!r}" for key, value in self.env_kwargs.items())]
@@ -380,7 +401,7 @@ class Distill:
         """Load the teacher (with its replay buffer, if saved), distil (its rollouts on the task options it trained with),
         save."""
         model_path = ctx.outputs[self.source]
-        env_id, env_kwargs = _env_id(model_path), zoo_env_kwargs(model_path)
+        env_id, env_kwargs = zoo_env_id(model_path), zoo_env_kwargs(model_path)
         register()  # the teacher's task may be gymnasium-robotics'
         teacher, _ = load_zoo_model(model_path, env=DummyVecEnv([lambda: gym.make(env_id, **env_kwargs)]))
         if (model_path.parent / "replay_buffer.pkl").is_file():  # a source trained with save_replay_buffer
