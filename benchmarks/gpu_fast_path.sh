@@ -3,11 +3,9 @@
 # with Python 3.12, torch (CUDA), numpy and pandas but no SB3 / Gymnasium / MuJoCo / gymnasium-robotics and no package
 # registry, in under 4 minutes:
 #
-#   1. installs the wheels of .gpu_wheels/wheels (made here by benchmarks/gpu_wheels.sh) with pip --no-index into
-#      a temporary folder (on PYTHONPATH: the machine's python3 is itself a venv, whose torch a --system-site-packages venv
-#      would not see);
-#   2. sets up EGL: unpacks libglvnd's libraries (.gpu_wheels/gl) onto /, points glvnd at NVIDIA's EGL vendor file,
-#      MUJOCO_GL=egl PYOPENGL_PLATFORM=egl, and renders a few ReacherImage frames (ms per step);
+#   1. installs the wheels of .gpu_wheels/wheels (made here by benchmarks/gpu_wheels.sh) and sets up EGL
+#      (benchmarks/gpu_setup.sh);
+#   2. renders a few ReacherImage and FetchReachImage frames (ms per step);
 #   3. runs the tests that need CUDA (in tests/test_cuda_graph.py and tests/test_device_buffer.py; CI skips them);
 #   4. runs benchmarks/gpu_speed.py in the time left (it skips the cases it has no time for, and says so).
 #
@@ -27,27 +25,10 @@ step "machine"
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader || true
 python3 -c "import sys, torch; print(sys.version.split()[0], 'torch', torch.__version__, 'cuda', torch.cuda.is_available())"
 
-step "wheels"
-if [ ! -d .gpu_wheels/wheels ]; then
-    echo "no .gpu_wheels/wheels: run benchmarks/gpu_wheels.sh here and carry .gpu_wheels" >&2
-    exit 1
-fi
-SITE=$(mktemp -d)
-python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target "$SITE" .gpu_wheels/wheels/*.whl || exit 1
-export PYTHONPATH="$SITE:$PWD"
-export OMP_NUM_THREADS=1 PYTHONUNBUFFERED=1
+step "wheels and EGL"
+source benchmarks/gpu_setup.sh || exit 1
 
-step "EGL"
-for deb in .gpu_wheels/gl/*.deb; do dpkg -x "$deb" /; done
-ldconfig
-for vendor in /usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json /usr/share/glvnd/egl_vendor.d/10_nvidia.json; do
-    if [ -f "$vendor" ]; then
-        export __EGL_VENDOR_LIBRARY_FILENAMES=$vendor
-        break
-    fi
-done
-export MUJOCO_GL=egl PYOPENGL_PLATFORM=egl
-echo "__EGL_VENDOR_LIBRARY_FILENAMES=${__EGL_VENDOR_LIBRARY_FILENAMES:-unset}"
+step "EGL rendering"
 python3 - <<'EOF'
 import time
 

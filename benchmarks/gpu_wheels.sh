@@ -3,7 +3,8 @@
 # package registry, fetched here into the ignored folder .gpu_wheels/ (carry it: run(carry=[".gpu_wheels"])):
 #
 # - wheels/: Python 3.12 x86-64 wheels of the packages that machine lacks, at the versions of this checkout's .venv
-#   (SB3, Gymnasium, MuJoCo and its GLFW / PyOpenGL bindings, gymnasium-robotics and PettingZoo, which it imports);
+#   (SB3, Gymnasium, MuJoCo and its GLFW / PyOpenGL bindings, gymnasium-robotics and PettingZoo, which it imports; the
+#   RL Zoo and what its train command imports: SB3-Contrib, huggingface_sb3 and wasabi, Optuna and colorlog);
 #   gymnasium-robotics without the Adroit-hand and Franka-kitchen meshes (24 MB the Fetch and maze tasks never load);
 # - gl/: the GL vendor-neutral dispatch libraries (libglvnd: libEGL, libOpenGL, libGL, libGLX, libGLES) as Debian
 #   packages, which MuJoCo's EGL rendering loads; NVIDIA's own EGL library comes with the machine's driver.
@@ -15,7 +16,8 @@ cd "$(dirname "$0")/.."
 DEST=.gpu_wheels
 PIP=${PIP:-.venv/bin/pip}
 PY=${PY:-.venv/bin/python}
-PACKAGES="stable_baselines3 gymnasium Farama-Notifications mujoco glfw PyOpenGL gymnasium-robotics pettingzoo"
+PACKAGES="stable_baselines3 gymnasium Farama-Notifications mujoco glfw PyOpenGL gymnasium-robotics pettingzoo
+    rl_zoo3 sb3_contrib sb3-team-hf-integration wasabi optuna colorlog"
 GL_PACKAGES="libegl1 libglvnd0 libopengl0 libgl1 libglx0 libgles2"
 
 rm -rf "$DEST"

@@ -1,0 +1,172 @@
+"""benchmarks.image_recipe: the variants' zoo arguments, resumption, the time limit, the table, bad input (the zoo stubbed)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rl_zoo3.utils import StoreDict
+
+from benchmarks import image_recipe
+from sb3_pilot.experiments.statistics import iqm
+
+TASK = "Pilot/ReacherImage-v0"
+#: A stand-in for ``python -m sb3_pilot.experiments.zoo train``: the zoo's evaluations.npz at each --eval-freq up to -n,
+#: success rising with the step (faster for show_target:False), FAKE_ZOO_SLEEP seconds after each evaluation, exit 0 on
+#: SIGINT (as the zoo saves and exits).
+FAKE_ZOO = textwrap.dedent(
+    """
+    import os, sys, time
+    from pathlib import Path
+    import numpy as np
+
+    args = sys.argv[2:]
+    value = lambda flag: args[args.index(flag) + 1]
+    steps, every, episodes = int(value("-n")), int(value("--eval-freq")), int(value("--eval-episodes"))
+    folder = Path("sac", value("--env").replace("/", "-") + "_1")
+    folder.mkdir(parents=True)
+    pace = 2 if "show_target:False" in args else 1
+    done = []
+    try:
+        for step in range(every, steps + 1, every):
+            done.append(step)
+            rates = np.minimum(1.0, pace * np.array(done) / steps)
+            successes = (np.arange(episodes) < np.round(rates[:, None] * episodes)).astype(float)
+            final_distances = 0.2 * (1 - successes.mean(axis=1))
+            np.savez(folder / "evaluations", timesteps=done, successes=successes, final_distances=final_distances)
+            time.sleep(float(os.environ.get("FAKE_ZOO_SLEEP", "0")))
+    except KeyboardInterrupt:
+        pass
+    """
+)
+
+
+@pytest.fixture()
+def fake_zoo(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    script = tmp_path / "fake_zoo.py"
+    script.write_text(FAKE_ZOO)
+    monkeypatch.setattr(image_recipe, "ZOO", (str(script),))
+    return script
+
+
+def recipe(root: Path, *extra: str) -> list[str]:
+    return ["--task", TASK, "--steps", "400", "--eval-freq", "200", "--eval-episodes", "4", "--root", str(root), *extra]
+
+
+def test_variant_args_as_the_zoo_reads_them() -> None:
+    entry = image_recipe.preset_entry(TASK)
+    assert image_recipe.variant_args(entry, image_recipe.parse_variant("drawn")) == []
+    args = image_recipe.variant_args(entry, image_recipe.parse_variant("hidden+noshift+stack3"))
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--env-kwargs", nargs="+", action=StoreDict)
+    parser.add_argument("-params", "--hyperparams", nargs="+", action=StoreDict)
+    parsed = parser.parse_args(args)
+    assert parsed.env_kwargs == {"show_target": False}
+    preset_kwargs = eval(entry["policy_kwargs"])["features_extractor_kwargs"]
+    assert preset_kwargs["random_shift"] == 4
+    assert parsed.hyperparams["policy_kwargs"] == {"features_extractor_kwargs": {**preset_kwargs, "random_shift": 0}}
+    assert parsed.hyperparams["env_wrapper"] == [{image_recipe.FRAME_STACK: {"n_frames": 3}}]
+
+
+def test_iqm_is_rliables() -> None:
+    values = np.random.default_rng(0).uniform(size=9)
+    assert image_recipe.iqm(values) == pytest.approx(iqm(values))
+    assert image_recipe.iqm([0.0, 1.0]) == 0.5  # the plain mean under 4 seeds
+
+
+def test_runs_resume_and_table(tmp_path: Path, fake_zoo: Path) -> None:
+    root = tmp_path / "runs"
+    summary = image_recipe.main(recipe(root, "--variants", "drawn", "hidden", "--seeds", "0", "1", "--jobs", "2"))
+    folder = root / "hidden" / "seed_1"
+    words = shlex.split((folder / "command.txt").read_text())
+    assert words[:2] == ["python", str(fake_zoo)] and words[words.index("--seed") + 1] == "1"
+    assert words[words.index("--env-kwargs") + 1] == "show_target:False"
+    assert json.loads((folder / "status.json").read_text())["finished"]
+    # drawn: success 0.5 at step 200, 1.0 at 400; hidden: twice as fast
+    drawn, hidden = summary["variants"]["drawn"], summary["variants"]["hidden"]
+    assert [point["success_iqm"] for point in drawn["curve"]] == [0.5, 1.0]
+    assert [point["final_distance_mean"] for point in drawn["curve"]] == pytest.approx([0.1, 0.0])
+    assert drawn["steps_to_50"] == {"iqm": 200.0, "reached": 2, "seeds": 2, "censored_at": 600}
+    assert hidden["curve"][0]["success_mean"] == 1.0
+    assert json.loads((root / "summary.json").read_text())["command"].startswith("python -m benchmarks.image_recipe --task")
+    assert "| drawn | 2 (2) | 400 | 1.00 |" in (root / "summary.md").read_text()
+
+    # one run unfinished (its last evaluation lost): only that one runs again
+    evaluations = {path: path.stat().st_mtime_ns for path in root.glob("*/seed_*/sac/*/evaluations.npz")}
+    unfinished = root / "drawn" / "seed_0"
+    data = dict(np.load(next(unfinished.glob("sac/*/evaluations.npz"))))
+    np.savez(next(unfinished.glob("sac/*/evaluations.npz")), **{key: value[:1] for key, value in data.items()})
+    assert not image_recipe.is_finished(unfinished, 400)
+    image_recipe.main(recipe(root, "--variants", "drawn", "hidden", "--seeds", "0", "1", "--jobs", "2"))
+    changed = {path for path, mtime in evaluations.items() if path.stat().st_mtime_ns != mtime}
+    assert [path.relative_to(root).parts[:2] for path in changed] == [("drawn", "seed_0")]
+    assert image_recipe.is_finished(unfinished, 400)
+
+
+def test_time_limit_keeps_evaluations(tmp_path: Path, fake_zoo: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("FAKE_ZOO_SLEEP", "60")
+    root = tmp_path / "runs"
+    summary = image_recipe.main(
+        recipe(root, "--variants", "noshift", "--seeds", "0", "1", "2", "--jobs", "2", "--time-limit", "3")
+    )
+    runs = summary["variants"]["noshift"]["runs"]
+    assert [run["seed"] for run in runs] == [0, 1]  # seed 2 never started
+    assert all(run["timesteps"] == [200] and not run["finished"] for run in runs)
+    status = json.loads((root / "noshift" / "seed_0" / "status.json").read_text())
+    assert status["stopped_by_time_limit"] and status["seconds"] < 30
+    assert not (root / "noshift" / "seed_2").exists()
+
+
+def test_table_from_evaluation_files(tmp_path: Path) -> None:
+    """--report: the table of the evaluations there, IQM over 4 seeds cutting the best and the worst."""
+    root = tmp_path / "runs"
+    finals = [0.0, 0.4, 0.6, 1.0]
+    for seed, final in enumerate(finals):
+        folder = root / "stack3" / f"seed_{seed}" / "sac" / "Pilot-ReacherImage-v0_1"
+        folder.mkdir(parents=True)
+        successes = np.array([[0.0] * 4, [final >= 0.5] * 4, [final] * 4])
+        np.savez(folder / "evaluations", timesteps=[200, 400, 600], successes=successes, final_distances=[0.3, 0.2, 0.1])
+    args = recipe(root, "--variants", "stack3", "--seeds", "0", "1", "2", "3", "--report")
+    args[args.index("--steps") + 1] = "600"
+    summary = image_recipe.main(args)["variants"]["stack3"]
+    assert summary["final_success_iqm"] == pytest.approx(0.5)  # (0.4 + 0.6) / 2
+    assert summary["curve"][-1]["success_mean"] == pytest.approx(0.5)
+    assert [run["steps_to_50"] for run in summary["runs"]] == [None, None, 400, 400]
+    assert summary["steps_to_50"]["reached"] == 2 and summary["steps_to_50"]["iqm"] == pytest.approx((400 + 800) / 2)
+    text = (root / "summary.md").read_text()
+    assert "seed 0: not by 600" in text and "| stack3 | 4 (4) | 600 | 0.50 | 0.100 | 600 (2/4) | - |" in text
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--variants", "drawn", "blurred"], "Unknown variant part(s) ['blurred']"),
+        (["--variants", "drawn+hidden"], "combines 'drawn'"),
+        (["--task", "Pilot/Reacher-v0"], "no entry in hyperparams/image/sac.yml"),
+        (["--eval-freq", "150"], "multiple of the preset's n_envs"),
+        (["--eval-freq", "120"], "a multiple of --eval-freq"),
+        (["--seeds", "0", "0"], "distinct"),
+        (["--jobs", "0"], "--jobs"),
+    ],
+)
+def test_bad_input(tmp_path: Path, fake_zoo: Path, args: list[str], message: str) -> None:
+    root = tmp_path / "runs"
+    with pytest.raises(SystemExit) as error:
+        image_recipe.main([*recipe(root), *args])
+    assert message in str(error.value)
+    assert not root.exists()  # nothing started
+
+
+def test_another_command_is_refused(tmp_path: Path, fake_zoo: Path) -> None:
+    root = tmp_path / "runs"
+    image_recipe.main(recipe(root, "--variants", "drawn", "--seeds", "0"))
+    args = recipe(root, "--variants", "drawn", "--seeds", "0", "--device", "cpu")
+    image_recipe.main(args)  # the device aside, the same runs: skipped
+    args[args.index("--steps") + 1] = "600"
+    with pytest.raises(SystemExit, match="holds a run of another command"):
+        image_recipe.main(args)
