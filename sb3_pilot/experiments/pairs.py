@@ -20,6 +20,13 @@ Verdict, per PILoT method against SAC+HER, on the gain ``IQM(area_PILoT) - IQM(a
 (:func:`~sb3_pilot.experiments.statistics.verdict`): ``confirmed`` when the interval lies above 0 on at least 5 seeds
 per method, ``worse than SAC+HER`` when it lies below 0 on as many, ``a hint`` when only the estimate lies above 0 or
 the interval does on fewer seeds, ``no gain shown`` otherwise, and no verdict under 3 seeds per method.
+
+Where the methods read a trained source (``source`` in ``summary.json``, or read from the models of a summary written
+before the runner recorded it), the pair's label says how many seeds' sources learned their own task (final success
+at least :data:`~sb3_pilot.experiments.challenges.runner.SOURCE_LEARNED`) and, where some did and some did not, the
+rows of the methods that read it follow again over the seeds whose source learned, against SAC+HER's every seed (it
+reads no source): a subset chosen after the fact, whose verdict is at most ``a hint``. The rows over all seeds stay
+the headline.
 """
 
 from __future__ import annotations
@@ -33,7 +40,7 @@ import gymnasium as gym
 import numpy as np
 
 from sb3_pilot.experiments.challenges.definitions import CHALLENGES, HER, REUSE_SHIPPED
-from sb3_pilot.experiments.challenges.runner import count_sources
+from sb3_pilot.experiments.challenges.runner import count_sources, describe_source, mean_curve, source_learning
 from sb3_pilot.experiments.challenges.stages import load_zoo_model, play_episodes, zoo_run_dir
 from sb3_pilot.experiments.evaluation import load_final_distances
 from sb3_pilot.experiments.statistics import REPS, aggregate_name, format_estimate, format_seeds, summary_statistics
@@ -129,7 +136,9 @@ def add_statistics(run_dir: Path, reps: int = REPS) -> dict[str, Any]:
     Compute the ``rliable`` statistics of a challenge run (:func:`~sb3_pilot.experiments.statistics.summary_statistics`,
     SAC+HER the baseline) and write them into its ``summary.json`` under ``statistics``. A summary written before
     the runner recorded each method's distinct sources gets them from its stages' hashes
-    (:func:`~sb3_pilot.experiments.challenges.runner.count_sources`; unknown for a stage its challenge no longer has).
+    (:func:`~sb3_pilot.experiments.challenges.runner.count_sources`; unknown for a stage its challenge no longer has),
+    and one written before it recorded how the trained source learned gets that from the source's models where they
+    are still there (:func:`~sb3_pilot.experiments.challenges.runner.source_learning`).
 
     :param run_dir: ``<root>/<challenge>``
     :param reps: bootstrap replications
@@ -142,15 +151,61 @@ def add_statistics(run_dir: Path, reps: int = REPS) -> dict[str, Any]:
         if result.get("sources") is None and challenge is not None:
             seeds = [run["seed"] for run in result["runs"]]
             result["sources"] = count_sources(challenge, result["stage"], summary["stages"], seeds)
+    if "source" not in summary and challenge is not None:
+        source = source_learning(challenge, summary["seeds"], run_dir, summary["stages"])
+        summary.update({} if source is None else {"source": source})
     summary["statistics"] = summary_statistics(summary, HER, reps=reps)
     path.write_text(json.dumps(summary, indent=1))
     return summary
 
 
+def _row(
+    pair: str,
+    method: str,
+    runs: list[dict[str, Any]],
+    statistics: dict[str, Any],
+    her: dict[str, Any] | None,
+    final: dict[str, Any],
+) -> str:
+    """
+    One row of the results table: a method over ``runs``.
+
+    :param pair: the pair's cell (empty but in a pair's first row)
+    :param method: the method
+    :param runs: its runs (all its seeds, or a subset)
+    :param statistics: the statistics of those runs (``{"methods", "comparisons"}``)
+    :param her: SAC+HER's statistics (None where the challenge has no SAC+HER)
+    :param final: ``final_eval.json``'s (:func:`evaluate_final`)
+    """
+    stats = statistics["methods"][method]
+    if all("final_distance" in run for run in runs):  # recorded in the summary: its last evaluation
+        distances = [run["final_distance"][-1] for run in runs]
+    else:
+        seeds = {f"seed_{run['seed']}" for run in runs}
+        distances = [entry["distance"] for key, entry in final.get(method, {}).items() if key in seeds]
+    comparison = statistics["comparisons"].get(method)
+    timesteps = mean_curve(runs)["timesteps"]
+    zero_shot = timesteps == [0]
+    improvement = format_estimate(comparison["probability_of_improvement"]) if comparison else ""
+    pace = ""
+    if comparison and her is not None:
+        pace = _pace(None if zero_shot else comparison["steps_to_90_ratio"], stats, her)
+    mean = _aggregate(stats["seeds"])
+    return (
+        f"| {pair} | {method} | {format_seeds(stats['seeds'], stats['sources'])} | "
+        f"{timesteps[-1]} | {mean}{format_estimate(stats['area'])} | "
+        f"{_steps(stats['steps_to_50'], stats['seeds'], zero_shot)} | "
+        f"{_steps(stats['steps_to_90'], stats['seeds'], zero_shot)} | "
+        f"{mean}{format_estimate(stats['final_success'])} | {_spread(distances, 3)} | {improvement} | {pace} | "
+        f"{comparison['verdict'] if comparison else ''} |"
+    )
+
+
 def table(run_dirs: list[Path], episodes: int = 10, reps: int = REPS) -> str:
     """
-    The markdown results table of the given challenge runs (one block of rows per pair); their statistics are written
-    into their ``summary.json`` (:func:`add_statistics`).
+    The markdown results table of the given challenge runs (one block of rows per pair, and the rows over the seeds
+    whose source learned where only some did: see the module doc); their statistics are written into their
+    ``summary.json`` (:func:`add_statistics`).
     """
     lines = [
         "| pair (budget, seeds) | method | seeds (sources) | env steps | area under the success curve, IQM [95% CI] "
@@ -162,30 +217,23 @@ def table(run_dirs: list[Path], episodes: int = 10, reps: int = REPS) -> str:
     for run_dir in run_dirs:
         summary = add_statistics(run_dir, reps)
         final = evaluate_final(run_dir, episodes)
-        pair = f"{summary['challenge']} ({summary['budget']}, {len(summary['seeds'])} seed{'s' * (len(summary['seeds']) > 1)})"
+        seeds = len(summary["seeds"])
+        source = summary.get("source")
+        learned = f"; {describe_source(source)}" if source else ""
+        pair = f"{summary['challenge']} ({summary['budget']}, {seeds} seed{'s' * (seeds > 1)}{learned})"
         statistics = summary["statistics"]
+        her = statistics["methods"].get(HER)
         for method, result in summary["methods"].items():
-            stats = statistics["methods"][method]
-            if all("final_distance" in run for run in result["runs"]):  # recorded in the summary: its last evaluation
-                distances = [run["final_distance"][-1] for run in result["runs"]]
-            else:
-                distances = [entry["distance"] for entry in final.get(method, {}).values()]
-            comparison = statistics["comparisons"].get(method)
-            zero_shot = result["mean"]["timesteps"] == [0]
-            improvement = format_estimate(comparison["probability_of_improvement"]) if comparison else ""
-            pace = ""
-            if comparison:
-                ratio = None if zero_shot else comparison["steps_to_90_ratio"]
-                pace = _pace(ratio, stats, statistics["methods"][HER])
-            mean = _aggregate(stats["seeds"])
-            lines.append(
-                f"| {pair} | {method} | {format_seeds(stats['seeds'], stats['sources'])} | "
-                f"{result['mean']['timesteps'][-1]} | {mean}{format_estimate(stats['area'])} | "
-                f"{_steps(stats['steps_to_50'], stats['seeds'], zero_shot)} | "
-                f"{_steps(stats['steps_to_90'], stats['seeds'], zero_shot)} | "
-                f"{mean}{format_estimate(stats['final_success'])} | {_spread(distances, 3)} | {improvement} | {pace} | "
-                f"{comparison['verdict'] if comparison else ''} |"
-            )
+            lines.append(_row(pair, method, result["runs"], statistics, her, final))
+            pair = ""
+        split = statistics.get("source_learned", {})
+        pair = (
+            f"{summary['challenge']}, only the {len(split.get('seeds', ()))} seeds whose source learned (a subset chosen "
+            f"after the fact: at most a hint; SAC+HER over all its seeds, it reads no source)"
+        )
+        for method in split.get("methods", {}):
+            runs = [run for run in summary["methods"][method]["runs"] if run["seed"] in split["seeds"]]
+            lines.append(_row(pair, method, runs, split, her, final))
             pair = ""
     return "\n".join(lines)
 

@@ -20,6 +20,11 @@ rliable calls): under 4 seeds it cuts none and is the plain mean, which ``aggreg
 A method's ``sources`` (in the summary, when its runner recorded them) is the number of distinct stages its seeds
 read from (a trained source per seed, or one shipped source for all): seeds that share one source leave the
 source's own variance out of the interval.
+
+Where the summary records how each seed's trained source learned its own task (``source``, with ``learned`` per
+seed), :func:`source_split_statistics` repeats the statistics of the methods that read it over the seeds whose source
+learned, against the baseline's seeds, all of them (it reads no source). That subset is chosen after the fact, so
+its verdict is at most "a hint" (:func:`verdict`'s ``subset``); the statistics over every seed stay the headline.
 """
 
 from __future__ import annotations
@@ -198,28 +203,32 @@ def method_statistics(
     return result
 
 
-def verdict(gain: dict[str, Any], seeds: int) -> str:
+def verdict(gain: dict[str, Any], seeds: int, subset: str | None = None) -> str:
     """
     The verdict on "the PILoT method learns the target faster than SAC+HER" from the gain in area: "confirmed"
     when its interval lies above 0 on at least :data:`CONFIRM_SEEDS` seeds per method, "worse than SAC+HER" when it
-    lies below 0 on as many; "a hint" when only the estimate is above 0, or the interval on fewer seeds; "no gain
-    shown" otherwise; no verdict under :data:`MIN_SEEDS` seeds.
+    lies below 0 on as many; "a hint" when only the estimate is above 0, or the interval on fewer seeds or on a
+    subset of the seeds chosen after the fact; "no gain shown" otherwise; no verdict under :data:`MIN_SEEDS` seeds.
 
     :param gain: ``{"value", "ci"}`` of ``IQM(area_PILoT) - IQM(area_HER)``
     :param seeds: the fewest seeds of the two methods
+    :param subset: which seeds the PILoT method's are, where they were chosen after the fact (e.g. "the seeds whose
+        source learned"); said in the verdict, which is then at most "a hint"
     """
     value, (low, high) = gain["value"], gain["ci"]
     interval = f"area gain {value:+.2f} [{low:+.2f}, {high:+.2f}]"
+    chosen = f", a subset chosen after the fact ({subset})" if subset else ""
     if seeds < MIN_SEEDS:
-        return f"too few seeds ({seeds}) for a verdict: {interval}"
-    few = f"{seeds} seeds per method ({CONFIRM_SEEDS} needed)"
+        return f"too few seeds ({seeds}) for a verdict: {interval}{chosen}"
+    firm = seeds >= CONFIRM_SEEDS and not subset
+    few = f"{seeds} seeds per method" + ("" if seeds >= CONFIRM_SEEDS else f" ({CONFIRM_SEEDS} needed)")
     if low > 0:
-        return f"confirmed: {interval}" if seeds >= CONFIRM_SEEDS else f"a hint: {interval} above 0 on {few}"
+        return f"confirmed: {interval}" if firm else f"a hint: {interval} above 0 on {few}{chosen}"
     if high < 0:
-        return f"worse than SAC+HER: {interval}" if seeds >= CONFIRM_SEEDS else f"no gain shown: {interval} below 0 on {few}"
+        return f"worse than SAC+HER: {interval}" if firm else f"no gain shown: {interval} below 0 on {few}{chosen}"
     if value > 0:
-        return f"a hint: {interval} includes 0"
-    return f"no gain shown: {interval}"
+        return f"a hint: {interval} includes 0{chosen}"
+    return f"no gain shown: {interval}{chosen}"
 
 
 def compare(
@@ -228,6 +237,7 @@ def compare(
     seed: int = 0,
     reps: int = REPS,
     censored_at: float | None = None,
+    subset: str | None = None,
 ) -> dict[str, Any]:
     """
     A PILoT method against SAC+HER on the area under the success curve.
@@ -237,6 +247,7 @@ def compare(
     :param seed: the bootstrap's random seed
     :param reps: bootstrap replications
     :param censored_at: every run's censoring step (:func:`run_scores`; None: each run's own)
+    :param subset: which seeds ``pilot_runs`` are, where they were chosen after the fact (:func:`verdict`)
     :return: ``probability_of_improvement``, ``area_gain`` and ``steps_to_90_ratio`` (``{"value", "ci"}``; the ratio
         is the IQM of PILoT's steps to 90% over HER's, censored seeds included, None when no seed of either reached
         90%), ``seeds`` (``{"method": n, "baseline": n}``) and ``verdict``
@@ -263,21 +274,23 @@ def compare(
         "area_gain": area_gain,
         "steps_to_90_ratio": _interval([pilot_steps, her_steps], ratio, seed, reps) if reached else None,
         "seeds": {"method": len(pilot), "baseline": len(her)},
-        "verdict": verdict(area_gain, min(len(pilot), len(her))),
+        "verdict": verdict(area_gain, min(len(pilot), len(her)), subset),
     }
 
 
 def summary_statistics(summary: dict[str, Any], baseline: str, seed: int = 0, reps: int = REPS) -> dict[str, Any]:
     """
     The statistics of a challenge's ``summary.json``: every method's (:func:`method_statistics`, with the number of
-    distinct sources its seeds read from where the summary records it, else None), and every other method compared
-    with ``baseline`` (SAC+HER) when the challenge has it (:func:`compare`).
+    distinct sources its seeds read from where the summary records it, else None), every other method compared
+    with ``baseline`` (SAC+HER) when the challenge has it (:func:`compare`) and, where the summary records its trained
+    source's own learning, the same over the seeds whose source learned (:func:`source_split_statistics`).
 
     :param summary: the summary
     :param baseline: the method the others are compared with
     :param seed: the bootstrap's random seed
     :param reps: bootstrap replications
-    :return: ``{"confidence", "reps", "methods": {method: ...}, "comparisons": {method: ...}}``
+    :return: ``{"confidence", "reps", "methods": {method: ...}, "comparisons": {method: ...}}``, and
+        ``source_learned`` where the summary has a ``source``
     """
     methods = summary["methods"]
     comparisons = {
@@ -285,7 +298,7 @@ def summary_statistics(summary: dict[str, Any], baseline: str, seed: int = 0, re
         for method, result in methods.items()
         if baseline in methods and method != baseline
     }
-    return {
+    statistics = {
         "confidence": CONFIDENCE,
         "reps": reps,
         "bootstrap_seed": seed,
@@ -295,6 +308,51 @@ def summary_statistics(summary: dict[str, Any], baseline: str, seed: int = 0, re
         },
         "comparisons": comparisons,
     }
+    if "source" in summary:
+        statistics["source_learned"] = source_split_statistics(summary, baseline, seed, reps)
+    return statistics
+
+
+#: How the seeds of a subset row were chosen (:func:`source_split_statistics`), in its verdict.
+SOURCE_LEARNED_SUBSET = "the seeds whose source learned"
+
+
+def source_split_statistics(summary: dict[str, Any], baseline: str, seed: int = 0, reps: int = REPS) -> dict[str, Any]:
+    """
+    The statistics of the methods that read a trained source (``summary["source"]["methods"]``) over the seeds whose
+    source learned its own task (``learned`` in ``summary["source"]["runs"]``), each compared with ``baseline`` over
+    all of its seeds: it reads no source, so no seed of it is left out. Computed only where those seeds are some but
+    not all of the seeds whose source was recorded (else the rows would be none, or the headline's again).
+
+    :param summary: the summary, with its ``source``
+    :param baseline: the method the others are compared with
+    :param seed: the bootstrap's random seed
+    :param reps: bootstrap replications
+    :return: ``learned_at`` (the source's final success from which it learned), ``seeds`` (those whose source
+        learned), ``of`` (those whose source was recorded), ``not_recorded`` (the summary's other seeds), and
+        ``methods`` / ``comparisons`` as :func:`summary_statistics`'s (a method's ``sources``: the subset's distinct
+        sources), empty where the subset is none or every seed; each verdict at most "a hint"
+    """
+    source, methods = summary["source"], summary["methods"]
+    learned = [run["seed"] for run in source["runs"] if run["learned"]]
+    recorded = [run["seed"] for run in source["runs"]]
+    split: dict[str, Any] = {
+        "learned_at": source["learned_at"],
+        "seeds": learned,
+        "of": recorded,
+        "not_recorded": [seed for seed in summary.get("seeds", recorded) if seed not in recorded],
+        "methods": {},
+        "comparisons": {},
+    }
+    if not 0 < len(learned) < len(recorded):
+        return split
+    hashes = {run["config_hash"] for run in source["runs"] if run["learned"]}
+    for method in source["methods"]:
+        runs = [run for run in methods[method]["runs"] if run["seed"] in learned]
+        split["methods"][method] = {**method_statistics(runs, seed, reps), "sources": len(hashes)}
+        if baseline in methods:
+            split["comparisons"][method] = compare(runs, methods[baseline]["runs"], seed, reps, subset=SOURCE_LEARNED_SUBSET)
+    return split
 
 
 def pointwise_iqm(curves: np.ndarray, seed: int = 0, reps: int = REPS) -> tuple[np.ndarray, np.ndarray]:

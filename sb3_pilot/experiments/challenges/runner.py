@@ -32,6 +32,11 @@ from sb3_pilot.experiments.statistics import MIN_SEEDS, aggregate_name, format_s
 #: Success rates whose first crossing the summary reports (``steps_to_50``, ``steps_to_90``).
 THRESHOLDS = (0.5, 0.9)
 SUMMARY = "summary.json"
+#: The stage in which a challenge trains its source (the task it transfers from), whose own learning the summary
+#: records per seed (:func:`source_learning`).
+SOURCE_STAGE = "source"
+#: A source "learned" its task when the success rate of its last evaluation reaches this.
+SOURCE_LEARNED = 0.5
 
 
 def steps_to(timesteps: Sequence[int], success_rate: Sequence[float]) -> dict[str, int | None]:
@@ -44,6 +49,23 @@ def steps_to(timesteps: Sequence[int], success_rate: Sequence[float]) -> dict[st
         )
         for threshold in THRESHOLDS
     }
+
+
+def upstream(challenge: Challenge, stage_name: str) -> set[str]:
+    """
+    :param challenge: the challenge
+    :param stage_name: one of its stages
+    :return: the names of the stages it reads from, directly or through others
+    """
+    by_name = {stage.name: stage for stage in challenge.stages}
+    found: set[str] = set()
+    todo = list(by_name[stage_name].needs)
+    while todo:
+        name = todo.pop()
+        if name not in found:
+            found.add(name)
+            todo.extend(by_name[name].needs if name in by_name else ())
+    return found
 
 
 def count_sources(
@@ -62,18 +84,79 @@ def count_sources(
     by_name = {stage.name: stage for stage in challenge.stages}
     if method_stage not in by_name:
         return None
-    roots: set[str] = set()
-    todo = list(by_name[method_stage].needs)
-    while todo:
-        name = todo.pop()
-        needs = by_name[name].needs if name in by_name else ()
-        todo.extend(needs)
-        if not needs:
-            roots.add(name)
+    roots = {name for name in upstream(challenge, method_stage) if name not in by_name or not by_name[name].needs}
     if not roots:
         return 0
     sources = {tuple(stages.get(f"seed_{seed}/{root}", {}).get("config_hash") for root in sorted(roots)) for seed in seeds}
     return None if any(None in hashes for hashes in sources) else len(sources)
+
+
+def mean_curve(runs: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """
+    :param runs: runs with ``timesteps`` and ``success_rate`` (and ``final_distance``)
+    :return: their mean success rate (and final distance, where every run records it) over the evaluations they all
+        have, with its steps to :data:`THRESHOLDS`
+    """
+    n_points = min(len(run["timesteps"]) for run in runs)
+    timesteps = runs[0]["timesteps"][:n_points]
+    mean: dict[str, Any] = {"timesteps": timesteps}
+    mean["success_rate"] = np.mean([run["success_rate"][:n_points] for run in runs], axis=0).tolist()
+    mean.update(steps_to(timesteps, mean["success_rate"]))
+    if all(len(run.get("final_distance", ())) >= n_points for run in runs):
+        mean["final_distance"] = np.mean([run["final_distance"][:n_points] for run in runs], axis=0).tolist()
+    return mean
+
+
+def source_learning(
+    challenge: Challenge, seeds: Sequence[int], out_dir: Path, markers: dict[str, dict[str, Any]]
+) -> dict[str, Any] | None:
+    """
+    How the challenge's trained source (its :class:`ZooTrain` stage :data:`SOURCE_STAGE`) learned its own task, per
+    seed: the success rate of its last evaluation, its steps to :data:`THRESHOLDS` and whether it learned (the last
+    success rate at least :data:`SOURCE_LEARNED`), from its ``evaluations.npz`` or, where its models are gone, as
+    an earlier ``summary.json`` recorded it (``recorded`` in its marker).
+
+    :param challenge: the challenge
+    :param seeds: its seeds
+    :param out_dir: ``<root>/<challenge>``
+    :param markers: stage markers (or ``summary.json``'s ``stages``) by ``seed_<k>/<stage>``, with ``config_hash``
+    :return: ``stage``, ``env_id``, ``learned_at``, ``methods`` (those that read from it) and ``runs`` (per seed
+        recorded, with the source's ``config_hash``); None where no method reads a trained source or no seed's
+        source is recorded
+    """
+    source = next((stage for stage in challenge.stages if stage.name == SOURCE_STAGE), None)
+    methods = [stage.method for stage in challenge.stages if stage.method and SOURCE_STAGE in upstream(challenge, stage.name)]
+    if not isinstance(source, ZooTrain) or not methods:
+        return None
+    runs = []
+    for seed in seeds:
+        marker = markers.get(f"seed_{seed}/{SOURCE_STAGE}")
+        if marker is None:
+            continue
+        run = marker.get("recorded")
+        if run is None:
+            try:
+                timesteps, success_rate = source.curve(out_dir / "models" / f"seed_{seed}" / SOURCE_STAGE)
+            except FileNotFoundError:  # its models are gone, and no summary recorded it
+                continue
+            run = {"seed": seed, "final_success": success_rate[-1], **steps_to(timesteps, success_rate)}
+        learned = run["final_success"] >= SOURCE_LEARNED
+        runs.append({**run, "learned": learned, "config_hash": marker["config_hash"]})
+    if not runs:
+        return None
+    return {"stage": SOURCE_STAGE, "env_id": source.env_id, "learned_at": SOURCE_LEARNED, "methods": methods, "runs": runs}
+
+
+def describe_source(source: dict[str, Any]) -> str:
+    """
+    :param source: ``summary.json``'s ``source`` (:func:`source_learning`)
+    :return: ``k of n seeds' sources learned``, the rule and the seeds whose source learned
+    """
+    learned = [run["seed"] for run in source["runs"] if run["learned"]]
+    return (
+        f"{len(learned)} of {len(source['runs'])} seeds' sources learned (the {source['stage']} stage's final success "
+        f">= {source['learned_at']} on {source['env_id']}: seeds {learned})"
+    )
 
 
 def summarize(
@@ -82,7 +165,8 @@ def summarize(
     """
     The challenge's results: success rate vs env steps on the target task, per compared method and seed, their
     mean over seeds, the steps to 50% / 90% success and the number of distinct sources its seeds read from
-    (:func:`count_sources`); for a zero-shot method, the guidance horizon and switch rule.
+    (:func:`count_sources`); for a zero-shot method, the guidance horizon and switch rule; where methods read a trained
+    source, how it learned its own task per seed (``source``, :func:`source_learning`).
 
     :param challenge: the challenge
     :param budget: the budget it ran at
@@ -106,14 +190,8 @@ def summarize(
             run = {"seed": seed, "timesteps": timesteps, "success_rate": success_rate, **steps_to(timesteps, success_rate)}
             distances = stage.distances(stage_dir)
             runs.append(run if distances is None else {**run, "final_distance": distances})
-        n_points = min(len(run["timesteps"]) for run in runs)
-        timesteps = runs[0]["timesteps"][:n_points]
-        mean: dict[str, Any] = {"timesteps": timesteps}
-        mean["success_rate"] = np.mean([run["success_rate"][:n_points] for run in runs], axis=0).tolist()
-        mean.update(steps_to(timesteps, mean["success_rate"]))
-        if all(len(run.get("final_distance", ())) >= n_points for run in runs):
-            mean["final_distance"] = np.mean([run["final_distance"][:n_points] for run in runs], axis=0).tolist()
         sources = count_sources(challenge, stage.name, markers, seeds)
+        mean = mean_curve(runs)
         methods[stage.method] = {"stage": stage.name, "env_id": stage.env_id, "runs": runs, "mean": mean, "sources": sources}
         if isinstance(stage, Guidance):
             methods[stage.method]["guidance"] = stage.rule
@@ -126,7 +204,7 @@ def summarize(
             "config": marker["config"],
             "progress_csv": str(csv.relative_to(out_dir)) if csv.exists() else marker.get("progress_csv"),
         }
-    return {
+    summary = {
         "challenge": challenge.name,
         "description": challenge.description,
         "target_env": challenge.target_env,
@@ -137,6 +215,8 @@ def summarize(
         "stages": stages,
         "wall_time_s": round(sum(marker["wall_time_s"] for marker in markers.values()), 1),
     }
+    source = source_learning(challenge, seeds, out_dir, markers)
+    return summary if source is None else {**summary, "source": source}
 
 
 def stage_graph(challenge: Challenge, seeds: Sequence[int]) -> dict[str, tuple[str, ...]]:
@@ -182,6 +262,8 @@ def plan(
     recorded_runs = {
         f"seed_{run['seed']}/{result['stage']}": run for result in record["methods"].values() for run in result["runs"]
     }
+    if "source" in record:  # the trained source's own learning, kept as the methods' runs are
+        recorded_runs.update({f"seed_{run['seed']}/{record['source']['stage']}": run for run in record["source"]["runs"]})
     todo: dict[str, StageTask] = {}
     finished: dict[str, dict[str, Any]] = {}
     for seed in seeds:
@@ -337,7 +419,9 @@ def format_table(summary: dict[str, Any]) -> str:
     A markdown table of a summary: seeds (and distinct sources) per method, final success (mean [min, max] over
     seeds), steps to 50% / 90% of the mean curve and, when the summary has its ``statistics`` (3 seeds or more), the
     IQM of the area under the success curve (the mean, where the IQM cuts none) with its 95% interval and the verdict
-    against SAC+HER.
+    against SAC+HER. Where the methods read a trained source (``source``) that learned on some seeds but not all,
+    their rows again over those seeds only, against SAC+HER's every seed: a subset chosen after the fact (at most "a
+    hint"); below the table, how many seeds' sources learned.
     """
     statistics = summary.get("statistics")
     lines = [
@@ -346,19 +430,35 @@ def format_table(summary: dict[str, Any]) -> str:
         + (" area, IQM [95% CI] | verdict |" if statistics else ""),
         "|---|---|---|---|---|---|" + ("---|---|" if statistics else ""),
     ]
-    for method, result in summary["methods"].items():
-        finals = [run["success_rate"][-1] for run in result["runs"]]
-        mean, seeds = result["mean"], len(result["runs"])
+
+    def row(method: str, label: str, runs: list[dict[str, Any]], sources: int | None, stats: dict[str, Any] | None) -> str:
+        """A method's row over ``runs``, with its statistics (``{"methods", "comparisons"}``) if any."""
+        finals = [run["success_rate"][-1] for run in runs]
+        mean = mean_curve(runs)
         line = (
-            f"| {method} | {format_seeds(seeds, result.get('sources'))} | {mean['timesteps'][-1]} | "
+            f"| {label} | {format_seeds(len(runs), sources)} | {mean['timesteps'][-1]} | "
             f"{np.mean(finals):.2f} [{min(finals):.2f}, {max(finals):.2f}] | "
             f"{mean['steps_to_50'] or '-'} | {mean['steps_to_90'] or '-'} |"
         )
-        if statistics:
-            area = statistics["methods"][method]["area"]
-            comparison = statistics["comparisons"].get(method)
-            label = "mean " if aggregate_name(seeds) == "mean" else ""
-            line += f" {label}{area['value']:.2f} [{area['ci'][0]:.2f}, {area['ci'][1]:.2f}] | "
-            line += f"{comparison['verdict'] if comparison else 'baseline' if method == HER else '-'} |"
-        lines.append(line)
-    return "\n".join(lines)
+        if stats is None:
+            return line + (" - | - |" if statistics else "")
+        area = stats["methods"][method]["area"]
+        comparison = stats["comparisons"].get(method)
+        aggregate = "mean " if aggregate_name(len(runs)) == "mean" else ""
+        line += f" {aggregate}{area['value']:.2f} [{area['ci'][0]:.2f}, {area['ci'][1]:.2f}] | "
+        return line + f"{comparison['verdict'] if comparison else 'baseline' if method == HER else '-'} |"
+
+    for method, result in summary["methods"].items():
+        lines.append(row(method, method, result["runs"], result.get("sources"), statistics))
+    source = summary.get("source")
+    if source is None:
+        return "\n".join(lines)
+    learned = {run["seed"] for run in source["runs"] if run["learned"]}
+    split = statistics.get("source_learned") if statistics else None
+    if 0 < len(learned) < len(source["runs"]):
+        sources = len({run["config_hash"] for run in source["runs"] if run["learned"]})
+        for method in source["methods"]:
+            runs = [run for run in summary["methods"][method]["runs"] if run["seed"] in learned]
+            label = f"{method}, only the seeds whose source learned (a subset chosen after the fact: at most a hint)"
+            lines.append(row(method, label, runs, sources, split))
+    return "\n".join([*lines, f"Sources: {describe_source(source)}."])
