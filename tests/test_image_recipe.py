@@ -118,7 +118,7 @@ def test_time_limit_keeps_evaluations(tmp_path: Path, fake_zoo: Path, monkeypatc
     assert [run["seed"] for run in runs] == [0, 1]  # seed 2 never started
     assert all(run["timesteps"] == [200] and not run["finished"] for run in runs)
     status = json.loads((root / "noshift" / "seed_0" / "status.json").read_text())
-    assert status["stopped_by_time_limit"] and status["seconds"] < 30
+    assert status["stopped_by_time_limit"] and status["seconds"] < 60  # stopped before the stub's 60 s end
     assert not (root / "noshift" / "seed_2").exists()
 
 
