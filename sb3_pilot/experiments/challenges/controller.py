@@ -20,7 +20,6 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-import yaml
 from stable_baselines3.common.save_util import load_from_zip_file
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
@@ -35,6 +34,7 @@ from sb3_pilot.experiments.challenges.stages import (
     vecnormalize_path,
     zoo_env_id,
     zoo_env_kwargs,
+    zoo_saved,
 )
 from sb3_pilot.transfer import LandmarkGuidance
 
@@ -241,9 +241,7 @@ def training_task(model_path: Path, max_episode_steps: int | None = None) -> gym
     """
     from rl_zoo3.utils import get_wrapper_class
 
-    config = model_path.parent / model_path.stem / "config.yml"
-    # the zoo writes OrderedDicts (python tags), read back as its own enjoy script does
-    hyperparams = dict(yaml.load(config.read_text(), Loader=yaml.UnsafeLoader)) if config.is_file() else {}
+    hyperparams = zoo_saved(model_path, "config.yml")
     kwargs = zoo_env_kwargs(model_path) | ({"max_episode_steps": max_episode_steps} if max_episode_steps else {})
     env = gym.make(zoo_env_id(model_path), **kwargs)
     wrapper = get_wrapper_class(hyperparams)

@@ -202,10 +202,7 @@ def _zoo_algo(model_path: Path) -> str:
     The zoo algorithm of a model: as its run's ``args.yml`` records it (a model copied with its saved settings, e.g. a
     chosen checkpoint), else the name of the run folder's parent (``<algo>/<env name>_<n>/<env name>.zip``).
     """
-    args = model_path.parent / model_path.stem / "args.yml"
-    if args.is_file():  # the zoo writes OrderedDicts (python tags), read back as its own enjoy script does
-        return str(dict(yaml.load(args.read_text(), Loader=yaml.UnsafeLoader))["algo"])
-    return model_path.parent.parent.name
+    return str(zoo_saved(model_path, "args.yml").get("algo") or model_path.parent.parent.name)
 
 
 def zoo_env_id(model_path: Path) -> str:
@@ -213,10 +210,7 @@ def zoo_env_id(model_path: Path) -> str:
     The task of a zoo run's model: as the run's ``args.yml`` records it (any Gymnasium ID), else ``Pilot/X-v0`` from
     the zoo's ``.../Pilot-X-v0.zip`` (a shipped model).
     """
-    args = model_path.parent / model_path.stem / "args.yml"
-    if args.is_file():  # the zoo writes OrderedDicts (python tags), read back as its own enjoy script does
-        return str(dict(yaml.load(args.read_text(), Loader=yaml.UnsafeLoader))["env"])
-    return model_path.stem.replace("-", "/", 1)
+    return str(zoo_saved(model_path, "args.yml").get("env") or model_path.stem.replace("-", "/", 1))
 
 
 def zoo_env_kwargs(model_path: Path) -> dict[str, Any]:
@@ -226,14 +220,25 @@ def zoo_env_kwargs(model_path: Path) -> dict[str, Any]:
 
     :param model_path: ``<run folder>/<env name>.zip``
     """
-    saved = model_path.parent / model_path.stem
     kwargs: dict[str, Any] = {}
     for name in ("config.yml", "args.yml"):
-        if (saved / name).is_file():
-            # the zoo writes OrderedDicts (python tags), read back as its own enjoy script does
-            entries = dict(yaml.load((saved / name).read_text(), Loader=yaml.UnsafeLoader))
-            kwargs.update(entries.get("env_kwargs") or {})
+        kwargs.update(zoo_saved(model_path, name).get("env_kwargs") or {})
     return kwargs
+
+
+def zoo_saved(model_path: Path, name: str) -> dict[str, Any]:
+    """
+    A settings file the zoo saved beside a model (``args.yml``: the command line; ``config.yml``: the YAML entry).
+
+    :param model_path: ``<run folder>/<env name>.zip``
+    :param name: the file's name
+    :return: its entries, empty if the file is not there (a model saved without them)
+    """
+    path = model_path.parent / model_path.stem / name
+    if not path.is_file():
+        return {}
+    # the zoo writes OrderedDicts (python tags), read back as its own enjoy script does
+    return dict(yaml.load(path.read_text(), Loader=yaml.UnsafeLoader))
 
 
 @dataclass(frozen=True)
