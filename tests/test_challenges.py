@@ -55,6 +55,20 @@ def test_steps_to() -> None:
     assert steps_to([100, 200], [0.0, 0.5]) == {"steps_to_50": 200, "steps_to_90": None}
 
 
+def test_a_comparison_names_a_method_of_the_challenge() -> None:
+    """A controller evaluation compared with a stage that is no compared method of its challenge: refused at once."""
+    import dataclasses
+
+    from sb3_pilot.experiments.challenges import CHALLENGES
+
+    wall = CHALLENGES["wall-maze-car"]
+    stages = tuple(
+        dataclasses.replace(stage, compared_with="controller") if stage.name == "guided" else stage for stage in wall.stages
+    )
+    with pytest.raises(ValueError, match="'guided' of wall-maze-car is compared with 'controller'"):
+        dataclasses.replace(wall, stages=stages)
+
+
 def test_unknown_challenge(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="Unknown challenge"):
         run_challenge("nope", root=tmp_path)

@@ -44,6 +44,7 @@ def test_pairs() -> None:
         assert challenge.target_env == target_env and challenge.stages[0].env_id == source_env, name
         assert stages["unguided"].method is not None and stages["unguided"].env_id == target_env, name
         assert stages["pilot"].method is not None and stages["pilot"].env_id == target_env, name
+        assert stages["pilot"].compared_with == "unguided", name  # its verdict: against the controller unguided
     for name, (source_env, target_env) in PAIRS.items():
         challenge = CHALLENGES[name]
         assert challenge.target_env == target_env

@@ -135,6 +135,7 @@ def test_pointmaze_to_antmaze_smoke(tmp_path: Path) -> None:
 
     summary = run_challenge("pointmaze-to-antmaze", "smoke", root=tmp_path)
     assert set(summary["methods"]) == {"PILoT zero-shot (0 U-maze steps)", "the controller unguided (0 U-maze steps)"}
+    assert summary["methods"]["PILoT zero-shot (0 U-maze steps)"]["baseline"] == "the controller unguided (0 U-maze steps)"
     models = tmp_path / "pointmaze-to-antmaze" / "models" / "seed_0"
     planner = GoalPlanner.load(models / "distill" / "planner.pt")
     assert planner.source_task == "PointMaze_UMaze-v3" and planner.metadata["teacher_algorithm"] == "SAC"

@@ -119,6 +119,29 @@ def test_summary_statistics_state_seeds_sources_and_the_mean() -> None:
     assert summary_statistics(summary, "SAC+HER", reps=50)["methods"]["PILoT"]["sources"] is None
 
 
+def test_a_method_is_compared_with_the_baseline_its_summary_names() -> None:
+    """A guided controller's entry names the same controller unguided: its comparison is with that method, named in
+    the verdict; the others are still compared with SAC+HER; a baseline is compared with none."""
+    once = [{"timesteps": [0], "success_rate": [rate]} for rate in (0.3, 0.4, 0.5, 0.3, 0.4, 0.5)]
+    never = [{"timesteps": [0], "success_rate": [rate]} for rate in (0.0, 0.0, 0.1, 0.0, 0.0, 0.0)]
+    rng = np.random.default_rng(0)
+    summary = {
+        "methods": {
+            "guided": {"runs": once, "baseline": "unguided"},
+            "unguided": {"runs": never},
+            "SAC+HER": {"runs": ramps(rng.uniform(0, 2000, size=6))},
+        }
+    }
+    comparisons = summary_statistics(summary, "SAC+HER", reps=200)["comparisons"]
+    guided = comparisons["guided"]
+    assert guided["baseline"] == "unguided" and guided["area_gain"]["value"] == pytest.approx(0.4)  # IQMs 0.4 and 0
+    assert guided["verdict"].startswith("confirmed: area gain +0.40") and guided["verdict"].endswith("over unguided")
+    assert set(comparisons) == {"guided"}
+    assert verdict({"value": -0.3, "ci": [-0.4, -0.2]}, 5, against="unguided").startswith("worse than unguided: area gain")
+    summary["methods"]["guided"]["baseline"] = "gone"  # a baseline the summary lacks: the method is compared with none
+    assert set(summary_statistics(summary, "SAC+HER", reps=50)["comparisons"]) == {"unguided"}  # a baseline no more
+
+
 def test_a_seed_stopped_early_has_not_reached() -> None:
     """A shorter curve that never reached 90% counts as censored at its own next point, not as reached."""
     full = {"timesteps": [10, 20, 30, 40], "success_rate": [0.0, 0.5, 0.9, 1.0]}

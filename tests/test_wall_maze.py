@@ -148,6 +148,7 @@ def test_wall_maze_car_challenge_smoke(tmp_path) -> None:
     from sb3_pilot.experiments.challenges import CHALLENGES, run_challenge
 
     summary = run_challenge("wall-maze-car", "smoke", root=tmp_path)
+    stages = {stage.name: stage for stage in CHALLENGES["wall-maze-car"].stages}
     assert set(summary["methods"]) == {stage.method for stage in CHALLENGES["wall-maze-car"].stages if stage.method}
     assert all(result["env_id"] == CAR for result in summary["methods"].values())
     teacher = summary["stages"]["seed_0/teacher"]["config"]["zoo"]
@@ -163,6 +164,8 @@ def test_wall_maze_car_challenge_smoke(tmp_path) -> None:
     guided = summary["stages"]["seed_0/guided"]["config"]
     assert guided["planner"].endswith("planner.pt") and guided["horizon"] == 1 and guided["env_kwargs"] == {"across": True}
     assert summary["stages"]["seed_0/unguided"]["config"]["planner"] is None
+    unguided = summary["methods"][stages["unguided"].method]
+    assert summary["methods"][stages["guided"].method]["baseline"] == stages["unguided"].method and "baseline" not in unguided
     for episode in json.loads((tmp_path / "wall-maze-car" / "models" / "seed_0" / "guided" / "guidance.json").read_text())[
         "episodes"
     ]:

@@ -16,7 +16,8 @@ stage's episodes); for summaries without it, the zoo's ``evaluations.npz``; runs
 final model (``models/``) played again for ``episodes`` deterministic episodes (``play_episodes``). Either goes to
 ``<root>/<challenge>/final_eval.json`` (reused if present, so the table can be rebuilt without the models).
 
-Verdict, per PILoT method against SAC+HER, on the gain ``IQM(area_PILoT) - IQM(area_HER)`` and its 95% interval
+Verdict, per PILoT method against SAC+HER (a guided controller: against the same controller unguided, where the
+challenge runs it, and the verdict names it), on the gain ``IQM(area_PILoT) - IQM(area_HER)`` and its 95% interval
 (:func:`~sb3_pilot.experiments.statistics.verdict`): ``confirmed`` when the interval lies above 0 on at least 5 seeds
 per method, ``worse than SAC+HER`` when it lies below 0 on as many, ``a hint`` when only the estimate lies above 0 or
 the interval does on fewer seeds, ``no gain shown`` otherwise, and no verdict under 3 seeds per method.
@@ -210,7 +211,7 @@ def table(run_dirs: list[Path], episodes: int = 10, reps: int = REPS) -> str:
     lines = [
         "| pair (budget, seeds) | method | seeds (sources) | env steps | area under the success curve, IQM [95% CI] "
         "| steps to 50%, IQM [95% CI] (seeds reaching it) | steps to 90% | final success, IQM [95% CI] "
-        "| final distance, mean [min, max] | P(improvement over SAC+HER) [95% CI] "
+        "| final distance, mean [min, max] | P(improvement over SAC+HER, or the baseline the verdict names) [95% CI] "
         "| steps to 90%, IQM ratio to SAC+HER's [95% CI] | verdict |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]

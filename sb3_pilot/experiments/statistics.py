@@ -8,7 +8,9 @@ Statistics of a challenge's learning curves that can tell a gain from seed noise
 - ``steps_to_50`` / ``steps_to_90``: the first evaluated step whose success rate reaches 50% / 90%; a seed that
   never does counts as one evaluation interval past the budget (``censored_at``), and ``reached`` says how many did;
 
-each with its stratified-bootstrap 95% interval. Each PILoT method is compared with SAC+HER on the area: the
+each with its stratified-bootstrap 95% interval (a zero-shot method has one evaluation: its area is its success
+rate). Each PILoT method is compared with SAC+HER, or with the method its summary entry names as its ``baseline``
+(a guided controller with the same controller unguided), on the area: the
 probability of improvement ``P(area_PILoT > area_HER)`` and the gain ``IQM(area_PILoT) - IQM(area_HER)``, with their
 bootstrap intervals (seeds of the two methods resampled independently), and on the pace: the ratio
 ``IQM(steps_to_90_PILoT) / IQM(steps_to_90_HER)`` with its interval (a censored seed makes its side's IQM a bound).
@@ -203,20 +205,23 @@ def method_statistics(
     return result
 
 
-def verdict(gain: dict[str, Any], seeds: int, subset: str | None = None) -> str:
+def verdict(gain: dict[str, Any], seeds: int, subset: str | None = None, against: str | None = None) -> str:
     """
-    The verdict on "the PILoT method learns the target faster than SAC+HER" from the gain in area: "confirmed"
-    when its interval lies above 0 on at least :data:`CONFIRM_SEEDS` seeds per method, "worse than SAC+HER" when it
-    lies below 0 on as many; "a hint" when only the estimate is above 0, or the interval on fewer seeds or on a
-    subset of the seeds chosen after the fact; "no gain shown" otherwise; no verdict under :data:`MIN_SEEDS` seeds.
+    The verdict on "the PILoT method learns the target faster than SAC+HER" (or does better than ``against``) from
+    the gain in area: "confirmed" when its interval lies above 0 on at least :data:`CONFIRM_SEEDS` seeds per method,
+    "worse than SAC+HER" when it lies below 0 on as many; "a hint" when only the estimate is above 0, or the interval
+    on fewer seeds or on a subset of the seeds chosen after the fact; "no gain shown" otherwise; no verdict under
+    :data:`MIN_SEEDS` seeds.
 
     :param gain: ``{"value", "ci"}`` of ``IQM(area_PILoT) - IQM(area_HER)``
     :param seeds: the fewest seeds of the two methods
     :param subset: which seeds the PILoT method's are, where they were chosen after the fact (e.g. "the seeds whose
         source learned"); said in the verdict, which is then at most "a hint"
+    :param against: the method compared with, where it is not SAC+HER (named in the verdict)
     """
     value, (low, high) = gain["value"], gain["ci"]
-    interval = f"area gain {value:+.2f} [{low:+.2f}, {high:+.2f}]"
+    gain_text = f"area gain {value:+.2f} [{low:+.2f}, {high:+.2f}]"
+    interval = gain_text + (f" over {against}" if against else "")
     chosen = f", a subset chosen after the fact ({subset})" if subset else ""
     if seeds < MIN_SEEDS:
         return f"too few seeds ({seeds}) for a verdict: {interval}{chosen}"
@@ -225,7 +230,9 @@ def verdict(gain: dict[str, Any], seeds: int, subset: str | None = None) -> str:
     if low > 0:
         return f"confirmed: {interval}" if firm else f"a hint: {interval} above 0 on {few}{chosen}"
     if high < 0:
-        return f"worse than SAC+HER: {interval}" if firm else f"no gain shown: {interval} below 0 on {few}{chosen}"
+        if firm:
+            return f"worse than {against or 'SAC+HER'}: {gain_text}"
+        return f"no gain shown: {interval} below 0 on {few}{chosen}"
     if value > 0:
         return f"a hint: {interval} includes 0{chosen}"
     return f"no gain shown: {interval}{chosen}"
@@ -238,9 +245,10 @@ def compare(
     reps: int = REPS,
     censored_at: float | None = None,
     subset: str | None = None,
+    against: str | None = None,
 ) -> dict[str, Any]:
     """
-    A PILoT method against SAC+HER on the area under the success curve.
+    A PILoT method against SAC+HER (or another baseline) on the area under the success curve.
 
     :param pilot_runs: the PILoT method's runs
     :param her_runs: SAC+HER's runs
@@ -248,6 +256,7 @@ def compare(
     :param reps: bootstrap replications
     :param censored_at: every run's censoring step (:func:`run_scores`; None: each run's own)
     :param subset: which seeds ``pilot_runs`` are, where they were chosen after the fact (:func:`verdict`)
+    :param against: the baseline's name where ``her_runs`` are not SAC+HER's (:func:`verdict`)
     :return: ``probability_of_improvement``, ``area_gain`` and ``steps_to_90_ratio`` (``{"value", "ci"}``; the ratio
         is the IQM of PILoT's steps to 90% over HER's, censored seeds included, None when no seed of either reached
         90%), ``seeds`` (``{"method": n, "baseline": n}``) and ``verdict``
@@ -274,7 +283,7 @@ def compare(
         "area_gain": area_gain,
         "steps_to_90_ratio": _interval([pilot_steps, her_steps], ratio, seed, reps) if reached else None,
         "seeds": {"method": len(pilot), "baseline": len(her)},
-        "verdict": verdict(area_gain, min(len(pilot), len(her)), subset),
+        "verdict": verdict(area_gain, min(len(pilot), len(her)), subset, against),
     }
 
 
@@ -282,21 +291,22 @@ def summary_statistics(summary: dict[str, Any], baseline: str, seed: int = 0, re
     """
     The statistics of a challenge's ``summary.json``: every method's (:func:`method_statistics`, with the number of
     distinct sources its seeds read from where the summary records it, else None), every other method compared
-    with ``baseline`` (SAC+HER) when the challenge has it (:func:`compare`) and, where the summary records its trained
-    source's own learning, the same over the seeds whose source learned (:func:`source_split_statistics`).
+    with its own ``baseline`` where its summary entry names one, else with ``baseline`` (SAC+HER) when the challenge
+    has it (:func:`compare`) and, where the summary records its trained source's own learning, the same over the
+    seeds whose source learned (:func:`source_split_statistics`).
 
     :param summary: the summary
-    :param baseline: the method the others are compared with
+    :param baseline: the method the others are compared with, where they name none
     :param seed: the bootstrap's random seed
     :param reps: bootstrap replications
-    :return: ``{"confidence", "reps", "methods": {method: ...}, "comparisons": {method: ...}}``, and
-        ``source_learned`` where the summary has a ``source``
+    :return: ``{"confidence", "reps", "methods": {method: ...}, "comparisons": {method: ...}}`` (each comparison
+        with the ``baseline`` it was made against), and ``source_learned`` where the summary has a ``source``
     """
     methods = summary["methods"]
     comparisons = {
-        method: compare(result["runs"], methods[baseline]["runs"], seed, reps)
+        method: _compare_with(methods, result["runs"], against, baseline, seed, reps)
         for method, result in methods.items()
-        if baseline in methods and method != baseline
+        if (against := _baseline_of(methods, method, baseline)) is not None
     }
     statistics = {
         "confidence": CONFIDENCE,
@@ -313,6 +323,31 @@ def summary_statistics(summary: dict[str, Any], baseline: str, seed: int = 0, re
     return statistics
 
 
+def _baseline_of(methods: dict[str, Any], method: str, default: str) -> str | None:
+    """
+    The method ``method`` is compared with: its summary entry's ``baseline``, else ``default``; None where that is
+    not in the summary, or ``method`` is itself a baseline (``default``, or one another entry names).
+    """
+    if method == default or any(result.get("baseline") == method for result in methods.values()):
+        return None
+    baseline = methods[method].get("baseline", default)
+    return baseline if baseline in methods else None
+
+
+def _compare_with(
+    methods: dict[str, Any],
+    runs: Sequence[dict[str, Any]],
+    baseline: str,
+    default: str,
+    seed: int,
+    reps: int,
+    subset: str | None = None,
+) -> dict[str, Any]:
+    """:func:`compare` of ``runs`` with every run of ``baseline`` (named in the verdict unless it is ``default``)."""
+    against = None if baseline == default else baseline
+    return {**compare(runs, methods[baseline]["runs"], seed, reps, subset=subset, against=against), "baseline": baseline}
+
+
 #: How the seeds of a subset row were chosen (:func:`source_split_statistics`), in its verdict.
 SOURCE_LEARNED_SUBSET = "the seeds whose source learned"
 
@@ -320,9 +355,10 @@ SOURCE_LEARNED_SUBSET = "the seeds whose source learned"
 def source_split_statistics(summary: dict[str, Any], baseline: str, seed: int = 0, reps: int = REPS) -> dict[str, Any]:
     """
     The statistics of the methods that read a trained source (``summary["source"]["methods"]``) over the seeds whose
-    source learned its own task (``learned`` in ``summary["source"]["runs"]``), each compared with ``baseline`` over
-    all of its seeds: it reads no source, so no seed of it is left out. Computed only where those seeds are some but
-    not all of the seeds whose source was recorded (else the rows would be none, or the headline's again).
+    source learned its own task (``learned`` in ``summary["source"]["runs"]``), each compared with its baseline
+    (:func:`summary_statistics`'s) over all of the baseline's seeds: it reads no source, so no seed of it is left
+    out. Computed only where those seeds are some but not all of the seeds whose source was recorded (else the rows
+    would be none, or the headline's again).
 
     :param summary: the summary, with its ``source``
     :param baseline: the method the others are compared with
@@ -350,8 +386,9 @@ def source_split_statistics(summary: dict[str, Any], baseline: str, seed: int = 
     for method in source["methods"]:
         runs = [run for run in methods[method]["runs"] if run["seed"] in learned]
         split["methods"][method] = {**method_statistics(runs, seed, reps), "sources": len(hashes)}
-        if baseline in methods:
-            split["comparisons"][method] = compare(runs, methods[baseline]["runs"], seed, reps, subset=SOURCE_LEARNED_SUBSET)
+        against = _baseline_of(methods, method, baseline)
+        if against is not None:
+            split["comparisons"][method] = _compare_with(methods, runs, against, baseline, seed, reps, SOURCE_LEARNED_SUBSET)
     return split
 
 

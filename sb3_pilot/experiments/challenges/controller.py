@@ -83,6 +83,8 @@ class ControllerEvaluation:
     :param episodes: episodes a seed (None: the budget's ``eval_episodes``); at a budget with steps for this stage
         (``smoke``), the budget's ``eval_episodes``, each ending after that many steps
     :param controller_algo: the zoo algorithm of the controller (None: from its zoo run folder)
+    :param compared_with: the stage whose method this one is compared with in the statistics (e.g. the same
+        controller unguided); None: SAC+HER, where the challenge has it. Not part of the stage's configuration
     """
 
     name: str
@@ -96,6 +98,7 @@ class ControllerEvaluation:
     switch_distance: float | None = None
     episodes: int | None = None
     controller_algo: str | None = None
+    compared_with: str | None = None
 
     @property
     def needs(self) -> tuple[str, ...]:

@@ -174,6 +174,17 @@ class Challenge:
     steps: dict[str, dict[str, int]]
     fast_hyperparams: dict[str, dict[str, Any]] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        methods = {stage.name for stage in self.stages if stage.method is not None}
+        for stage in self.stages:
+            if not isinstance(stage, ControllerEvaluation) or stage.compared_with is None:
+                continue
+            if stage.method is None or stage.compared_with not in methods - {stage.name}:
+                raise ValueError(
+                    f"Stage {stage.name!r} of {self.name} is compared with {stage.compared_with!r}: both must be "
+                    f"compared methods of it, and differ (those: {sorted(methods)})."
+                )
+
 
 def bonus_params(planner_stage: str, similarity: str) -> Any:
     """
@@ -400,6 +411,7 @@ CHALLENGES: dict[str, Challenge] = {
                     env_kwargs={"across": True},
                     horizon=1,
                     episodes=30,
+                    compared_with="unguided",
                 ),
                 ControllerEvaluation(
                     "unguided",
@@ -452,6 +464,7 @@ CHALLENGES: dict[str, Challenge] = {
                     goal_scale=4.0,
                     horizon=3,
                     episodes=30,
+                    compared_with="unguided",
                 ),
                 ControllerEvaluation(
                     "unguided",

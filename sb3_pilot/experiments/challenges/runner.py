@@ -13,6 +13,7 @@ import numpy as np
 import torch as th
 
 from sb3_pilot.experiments.challenges.backends import BACKENDS, StageTask, run_local, run_ray
+from sb3_pilot.experiments.challenges.controller import ControllerEvaluation
 from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, HER, Challenge
 from sb3_pilot.experiments.challenges.display import RunDisplay, stage_name
 from sb3_pilot.experiments.challenges.stages import (
@@ -176,6 +177,7 @@ def summarize(
     :return: the summary (what ``summary.json`` holds)
     """
     methods: dict[str, Any] = {}
+    by_name = {stage.name: stage for stage in challenge.stages}
     for stage in challenge.stages:
         if stage.method is None:
             continue
@@ -195,6 +197,8 @@ def summarize(
         methods[stage.method] = {"stage": stage.name, "env_id": stage.env_id, "runs": runs, "mean": mean, "sources": sources}
         if isinstance(stage, Guidance):
             methods[stage.method]["guidance"] = stage.rule
+        if isinstance(stage, ControllerEvaluation) and stage.compared_with is not None:
+            methods[stage.method]["baseline"] = by_name[stage.compared_with].method
     stages: dict[str, Any] = {}
     for key, marker in markers.items():
         csv = out_dir / "models" / key / PROGRESS_CSV
@@ -419,9 +423,9 @@ def format_table(summary: dict[str, Any]) -> str:
     A markdown table of a summary: seeds (and distinct sources) per method, final success (mean [min, max] over
     seeds), steps to 50% / 90% of the mean curve and, when the summary has its ``statistics`` (3 seeds or more), the
     IQM of the area under the success curve (the mean, where the IQM cuts none) with its 95% interval and the verdict
-    against SAC+HER. Where the methods read a trained source (``source``) that learned on some seeds but not all,
-    their rows again over those seeds only, against SAC+HER's every seed: a subset chosen after the fact (at most "a
-    hint"); below the table, how many seeds' sources learned.
+    against SAC+HER (or the baseline the verdict names). Where the methods read a trained source (``source``) that
+    learned on some seeds but not all, their rows again over those seeds only, against SAC+HER's every seed: a subset
+    chosen after the fact (at most "a hint"); below the table, how many seeds' sources learned.
     """
     statistics = summary.get("statistics")
     lines = [
@@ -430,6 +434,8 @@ def format_table(summary: dict[str, Any]) -> str:
         + (" area, IQM [95% CI] | verdict |" if statistics else ""),
         "|---|---|---|---|---|---|" + ("---|---|" if statistics else ""),
     ]
+
+    baselines = {HER, *(result["baseline"] for result in summary["methods"].values() if "baseline" in result)}
 
     def row(method: str, label: str, runs: list[dict[str, Any]], sources: int | None, stats: dict[str, Any] | None) -> str:
         """A method's row over ``runs``, with its statistics (``{"methods", "comparisons"}``) if any."""
@@ -446,7 +452,7 @@ def format_table(summary: dict[str, Any]) -> str:
         comparison = stats["comparisons"].get(method)
         aggregate = "mean " if aggregate_name(len(runs)) == "mean" else ""
         line += f" {aggregate}{area['value']:.2f} [{area['ci'][0]:.2f}, {area['ci'][1]:.2f}] | "
-        return line + f"{comparison['verdict'] if comparison else 'baseline' if method == HER else '-'} |"
+        return line + f"{comparison['verdict'] if comparison else 'baseline' if method in baselines else '-'} |"
 
     for method, result in summary["methods"].items():
         lines.append(row(method, method, result["runs"], result.get("sources"), statistics))
