@@ -330,6 +330,21 @@ def find_zoo_run(folder: str | os.PathLike, algo: str, env_id: str, exp_id: int 
     return model_path
 
 
+def zoo_saved(model_path: Path, name: str) -> dict[str, Any]:
+    """
+    A settings file the zoo saved beside a model (``args.yml``: the command line; ``config.yml``: the YAML entry).
+
+    :param model_path: ``<run folder>/<env name>.zip``
+    :param name: the file's name
+    :return: its entries, empty if the file is not there (a model saved without them)
+    """
+    path = model_path.parent / model_path.stem / name
+    if not path.is_file():
+        return {}
+    # the zoo writes OrderedDicts (python tags), read back as its own enjoy script does
+    return dict(yaml.load(path.read_text(), Loader=yaml.UnsafeLoader))
+
+
 def load_zoo_run(
     model_path: str | os.PathLike, algo: str, env_id: str, seed: int = 0, device: str = "auto", buffer_size: int | None = 1
 ) -> tuple[BaseAlgorithm, VecEnv]:
@@ -353,10 +368,9 @@ def load_zoo_run(
     saved = model_path.parent / model_path.stem
     hyperparams, stats_path = get_saved_hyperparams(str(saved), norm_reward=False, test_mode=True)
     env_kwargs = dict(hyperparams.pop("env_kwargs", None) or {})
-    if (saved / "args.yml").is_file():  # the command line's --env-kwargs replaced the YAML's
-        args = yaml.load((saved / "args.yml").read_text(), Loader=yaml.UnsafeLoader)
-        if args.get("env_kwargs") is not None:
-            env_kwargs = dict(args["env_kwargs"])
+    command_line = zoo_saved(model_path, "args.yml").get("env_kwargs")
+    if command_line is not None:  # the command line's --env-kwargs replaced the YAML's
+        env_kwargs = dict(command_line)
     env = create_test_env(
         env_id,
         stats_path=stats_path,

@@ -34,8 +34,8 @@ from sb3_pilot.experiments.challenges.stages import (
     vecnormalize_path,
     zoo_env_id,
     zoo_env_kwargs,
-    zoo_saved,
 )
+from sb3_pilot.experiments.zoo import zoo_saved
 from sb3_pilot.transfer import LandmarkGuidance
 
 

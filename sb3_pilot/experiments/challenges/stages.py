@@ -34,7 +34,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 from sb3_pilot.common.utils import check_number
 from sb3_pilot.distill import GoalPlanner, distill_goal_planner
 from sb3_pilot.experiments.evaluation import load_final_distances
-from sb3_pilot.experiments.zoo import hyperparams_dir, register
+from sb3_pilot.experiments.zoo import hyperparams_dir, register, zoo_saved
 from sb3_pilot.transfer import LandmarkGuidance
 
 #: Marker a finished stage leaves in its folder.
@@ -224,21 +224,6 @@ def zoo_env_kwargs(model_path: Path) -> dict[str, Any]:
     for name in ("config.yml", "args.yml"):
         kwargs.update(zoo_saved(model_path, name).get("env_kwargs") or {})
     return kwargs
-
-
-def zoo_saved(model_path: Path, name: str) -> dict[str, Any]:
-    """
-    A settings file the zoo saved beside a model (``args.yml``: the command line; ``config.yml``: the YAML entry).
-
-    :param model_path: ``<run folder>/<env name>.zip``
-    :param name: the file's name
-    :return: its entries, empty if the file is not there (a model saved without them)
-    """
-    path = model_path.parent / model_path.stem / name
-    if not path.is_file():
-        return {}
-    # the zoo writes OrderedDicts (python tags), read back as its own enjoy script does
-    return dict(yaml.load(path.read_text(), Loader=yaml.UnsafeLoader))
 
 
 @dataclass(frozen=True)
