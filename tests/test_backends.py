@@ -133,6 +133,7 @@ def test_stage_graphs() -> None:
             "controller": (),
             "chosen": ("controller",),
             "pilot": ("distill", "chosen"),
+            "unguided": ("chosen",),
             "her": (),
             "mega": (),
         },

@@ -129,7 +129,10 @@ def test_zero_shot_ant_maze_smoke(tmp_path: Path) -> None:
     run_dir = tmp_path / "zero-shot-ant-maze"
     check_summary(summary, "zero-shot-ant-maze", run_dir)
     zero_shot = summary["methods"]["PILoT zero-shot (0 Ant-Maze steps)"]
-    assert zero_shot["mean"]["timesteps"] == [0]
+    assert zero_shot["mean"]["timesteps"] == [0] and zero_shot["guidance"]["horizon"] == 3
+    assert zero_shot["baseline"] == "the controller unguided (0 Ant-Maze steps)"  # compared with the same controller
+    unguided = json.loads((run_dir / "models" / "seed_0" / "unguided" / "guidance.json").read_text())
+    assert unguided["planner"] is None and len(unguided["successes"]) == 2  # the smoke budget's episodes
     guidance = json.loads((run_dir / "models" / "seed_0" / "pilot" / "guidance.json").read_text())
     episode = guidance["episodes"][0]
     assert len(episode["achieved_goals"]) == len(episode["landmarks"]) == 501  # reset + 500 steps

@@ -27,7 +27,7 @@ from sb3_pilot.experiments.challenges.controller import (
     find_checkpoints,
     training_task,
 )
-from sb3_pilot.experiments.challenges.stages import Guidance, StageContext, load_zoo_model
+from sb3_pilot.experiments.challenges.stages import StageContext, load_zoo_model
 
 ENV_ID, ENV_NAME = "Pilot/Maze2D-v0", "Pilot-Maze2D-v0"
 
@@ -167,7 +167,7 @@ def test_challenges_evaluate_the_chosen_checkpoint(name: str) -> None:
     stages = {stage.name: stage for stage in CHALLENGES[name].stages}
     assert isinstance(stages["controller"], ZooTrain) and stages["controller"].checkpoints > 0
     assert stages["chosen"] == ChooseCheckpoint("chosen", "controller", episodes=30)
-    evaluations = [stage for stage in stages.values() if isinstance(stage, Guidance | ControllerEvaluation)]
+    evaluations = [stage for stage in stages.values() if isinstance(stage, ControllerEvaluation)]
     assert evaluations and all(stage.controller == "chosen" for stage in evaluations)
     # the shipped variant evaluates its shipped controller, chosen by hand on open ground
     if name in REUSE_SHIPPED:

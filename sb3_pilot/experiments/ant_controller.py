@@ -293,7 +293,7 @@ def guided_episodes(
     """
     The controller on ``Pilot/AntMaze-v0`` (far goal), guided by ``LandmarkGuidance(planner, horizon,
     switch_distance, snap)`` or, with ``horizon=None``, shown the real goal directly. Episode ``i`` is reset with seed
-    ``10_000 * seed + i``, as the challenge's ``Guidance`` stage does.
+    ``10_000 * seed + i``, as the challenges' ``ControllerEvaluation`` stage does.
 
     :return: ``success`` (goal within 1.0 at the last step, the task's success), ``reached`` (at any step),
         ``flipped`` (fraction of steps), ``final_distance`` (to the real goal), ``speed`` (mean xy move per step)

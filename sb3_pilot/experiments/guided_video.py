@@ -24,8 +24,9 @@ import torch as th
 
 from sb3_pilot.distill import GoalPlanner
 from sb3_pilot.envs import register_envs
+from sb3_pilot.experiments.challenges.controller import ControllerEvaluation
 from sb3_pilot.experiments.challenges.definitions import REUSE_SHIPPED
-from sb3_pilot.experiments.challenges.stages import Guidance, Shipped, ShippedFileMissing, load_zoo_model, shipped_file
+from sb3_pilot.experiments.challenges.stages import Shipped, ShippedFileMissing, load_zoo_model, shipped_file
 from sb3_pilot.transfer import LandmarkGuidance
 
 #: The challenge whose shipped models, horizon and switch rule the video shows.
@@ -36,14 +37,17 @@ PATH_RGBA = np.array([0.15, 0.35, 1.0, 1.0])
 CAMERA = {"lookat": (0.0, 0.0, 0.0), "distance": 17.0, "elevation": -90.0, "azimuth": 90.0}
 
 
-def shipped_guidance() -> tuple[Path, Path, Guidance]:
+def shipped_guidance() -> tuple[Path, Path, ControllerEvaluation]:
     """The shipped controller's and planner's paths and the challenge's guidance stage (horizon, switch rule)."""
     shipped = {stage.name: stage.path for stage in CHALLENGE.stages if isinstance(stage, Shipped)}
-    (guidance,) = (stage for stage in CHALLENGE.stages if isinstance(stage, Guidance))
+    (guidance,) = (stage for stage in CHALLENGE.stages if isinstance(stage, ControllerEvaluation) and stage.planner)
+    assert guidance.planner is not None
     return shipped[guidance.controller], shipped[guidance.planner], guidance
 
 
-def guided_env(planner: GoalPlanner, guidance: Guidance, max_steps: int | None, render_size: int | None) -> LandmarkGuidance:
+def guided_env(
+    planner: GoalPlanner, guidance: ControllerEvaluation, max_steps: int | None, render_size: int | None
+) -> LandmarkGuidance:
     """``Pilot/AntMaze-v0`` guided as the challenge's stage does, rendered top-down if ``render_size`` is given."""
     task = gym.make(
         guidance.env_id,

@@ -216,9 +216,11 @@ def plot_landmarks(summary: dict[str, Any], run_dir: Path, path: Path) -> bool:
     :return: whether the challenge has a Maze2D planner (no PNG otherwise)
     """
     seed_dir = run_dir / "models" / f"seed_{summary['seeds'][0]}"
+    # the guided evaluations (an unguided one has no planner, no landmarks)
     results = [json.loads(file.read_text()) for file in sorted(seed_dir.glob("*/guidance.json"))]
+    results = [result for result in results if result.get("planner")]
     # the planners the challenge distilled, else the one its guidance read (``--reuse-shipped``: the shipped one)
-    files = sorted(seed_dir.glob("*/planner.pt")) or [Path(result["planner"]) for result in results if "planner" in result]
+    files = sorted(seed_dir.glob("*/planner.pt")) or [Path(result["planner"]) for result in results]
     planners = [planner for planner in map(GoalPlanner.load, files) if planner.source_task == MAZE_SOURCE]
     if not planners:
         return False

@@ -3,10 +3,10 @@ Challenge stages of a trained goal-conditioned controller, for zero-shot transfe
 
 - :class:`ChooseCheckpoint` chooses the controller's checkpoint on held-out episodes of its own training task (no
   episode of the task it is transferred to), by a stated rule (:func:`choose_checkpoint`);
-- :class:`ControllerEvaluation` evaluates it on a task of any package, guided by a goal planner's landmarks
-  (:class:`~sb3_pilot.LandmarkGuidance`) or unguided (its baseline): the stage of the ``pointmaze-to-antmaze``
-  challenge, whose tasks are gymnasium-robotics' own (its options, a goal map between the planner's task and the
-  controller's, its ``success`` key).
+- :class:`ControllerEvaluation` evaluates it on a task of any package, with no training there, guided by a goal
+  planner's landmarks (:class:`~sb3_pilot.LandmarkGuidance`: zero-shot transfer) or unguided (its baseline): the
+  ``Pilot/`` tasks and gymnasium-robotics' own (their options, a goal map between the planner's task and the
+  controller's, their ``success`` key).
 """
 
 from __future__ import annotations
@@ -27,7 +27,6 @@ from sb3_pilot.common.utils import check_number
 from sb3_pilot.distill import GoalMap, GoalPlanner, share_goal_space
 from sb3_pilot.envs.maze import UMAZE_GOAL_CELL, UMAZE_MAP, UMAZE_START_CELL
 from sb3_pilot.experiments.challenges.stages import (
-    Guidance,
     StageContext,
     load_zoo_model,
     play_episodes,
@@ -65,10 +64,10 @@ def reported_success(info: dict[str, Any]) -> float:
 class ControllerEvaluation:
     """
     A controller of an earlier stage on ``env_id`` (made with ``env_kwargs``), with no training there: guided by the
-    landmarks of the ``planner`` stage's goal planner (:class:`~sb3_pilot.LandmarkGuidance`), or unguided
-    (``planner=None``: the real goal is its ``desired_goal``). The success rate (the task's ``is_success``, else its
-    ``success``), the final distances to the real goal and each episode's path (and landmarks) go to
-    ``guidance.json``, as :class:`~sb3_pilot.experiments.challenges.stages.Guidance`'s.
+    landmarks of the ``planner`` stage's goal planner (:class:`~sb3_pilot.LandmarkGuidance`, zero-shot transfer), or
+    unguided (``planner=None``: the real goal is its ``desired_goal``). The success rate (the task's ``is_success``,
+    else its ``success``), the final distances to the real goal and each episode's path (and landmarks) go to
+    ``guidance.json``; in the summary, one point at 0 steps on the task.
 
     :param name: stage name
     :param controller: the :class:`ZooTrain` (or :class:`Shipped`) stage of the controller
@@ -103,6 +102,18 @@ class ControllerEvaluation:
     @property
     def needs(self) -> tuple[str, ...]:
         return (self.controller,) if self.planner is None else (self.planner, self.controller)
+
+    @property
+    def rule(self) -> dict[str, Any] | None:
+        """The guidance horizon ``k`` and the switch rule, for the summary (None: unguided)."""
+        if self.planner is None:
+            return None
+        switch = (
+            "the real goal once it is closer than the landmark"
+            if self.switch_distance is None
+            else f"the real goal once it is within {self.switch_distance}"
+        )
+        return {"horizon": self.horizon, "switch_distance": self.switch_distance, "switch_rule": switch}
 
     def output(self, stage_dir: Path) -> Path:
         """The evaluation's result file."""
@@ -170,9 +181,14 @@ class ControllerEvaluation:
         }
         self.output(stage_dir).write_text(json.dumps({**result, "episodes": episodes}))
 
-    # one point each, read from guidance.json as the Guidance stage's
-    curve = Guidance.curve
-    distances = Guidance.distances
+    def curve(self, stage_dir: Path) -> tuple[list[int], list[float]]:
+        """One point: the success rate after 0 steps on the task."""
+        result = json.loads(self.output(stage_dir).read_text())
+        return result["timesteps"], result["success_rate"]
+
+    def distances(self, stage_dir: Path) -> list[float]:
+        """One point: the mean final distance to the real goal."""
+        return [float(np.mean(json.loads(self.output(stage_dir).read_text())["final_distances"]))]
 
 
 #: The rule :class:`ChooseCheckpoint` applies, as its ``choice.json`` states it.

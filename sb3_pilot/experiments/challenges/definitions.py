@@ -39,7 +39,6 @@ from sb3_pilot.experiments.challenges.stages import (
     REPO_DIR,
     Budget,
     Distill,
-    Guidance,
     Import,
     Shipped,
     Stage,
@@ -530,21 +529,35 @@ CHALLENGES: dict[str, Challenge] = {
                 # k = 3, measured on this challenge's seed-0 controller and planner (a planner distilled from the
                 # teacher's real steps, 0.42 a step): success k = 1 / 2 / 3 0.23 / 0.47 / 0.67 on seeds 0-2, k = 2 / 3
                 # / 4 0.63 / 0.63 / 0.30 on held-out seeds 3-5 (zoo_runs/zero-shot-ant-maze/README.md)
-                Guidance(
+                ControllerEvaluation(
                     "pilot",
-                    "distill",
                     "chosen",
                     "Pilot/AntMaze-v0",
                     "PILoT zero-shot (0 Ant-Maze steps)",
+                    planner="distill",
                     horizon=3,
-                    switch_distance=None,
+                    episodes=30,
+                    compared_with="unguided",
+                ),
+                # the same controller shown the real goal: what the landmarks add
+                ControllerEvaluation(
+                    "unguided", "chosen", "Pilot/AntMaze-v0", "the controller unguided (0 Ant-Maze steps)", episodes=30
                 ),
                 ZooTrain("her", "sac", "Pilot/AntMaze-v0", "sac.yml", method=HER),
                 # the paper's exploration baseline trained on Ant-Maze, SAC+HER's recipe (hyperparams/cpu/sac_mega.yml)
                 ZooTrain("mega", "sac", "Pilot/AntMaze-v0", "sac_mega.yml", method=HER_MEGA),
             ),
             steps={
-                "smoke": {"maze": 300, "controller": 500, "chosen": 50, "her": 2100, "mega": 2100},
+                # smoke: the budget's few episodes for the evaluations, of the task's own 500 steps
+                "smoke": {
+                    "maze": 300,
+                    "controller": 500,
+                    "chosen": 50,
+                    "pilot": 500,
+                    "unguided": 500,
+                    "her": 2100,
+                    "mega": 2100,
+                },
                 "cpu": {"maze": 20_000, "controller": 350_000, "her": 350_000, "mega": 350_000},
             },
         ),
@@ -614,14 +627,13 @@ REUSE_SHIPPED: dict[str, Challenge] = {
             Shipped("controller", SHIPPED_DIR / "ant_controller_upright_seed1_sac_400k.zip"),
             # k and the switch rule chosen with the training-seed-0 controller and this planner (controller/README.md):
             # k = 1 and k = 2 tie on success (0.70 on seeds 0-2, 0.60 on seeds 3-5); k = 1 flips less
-            Guidance(
+            ControllerEvaluation(
                 "pilot",
-                "distill",
                 "controller",
                 "Pilot/AntMaze-v0",
                 "PILoT zero-shot, shipped models (0 Ant-Maze steps)",
+                planner="distill",
                 horizon=1,
-                switch_distance=None,
                 controller_algo="sac",
             ),
         ),

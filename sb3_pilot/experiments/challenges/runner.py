@@ -22,7 +22,6 @@ from sb3_pilot.experiments.challenges.stages import (
     STAGE_LOG,
     STAGE_MARKER,
     Budget,
-    Guidance,
     StageContext,
     ZooTrain,
     config_hash,
@@ -195,7 +194,7 @@ def summarize(
         sources = count_sources(challenge, stage.name, markers, seeds)
         mean = mean_curve(runs)
         methods[stage.method] = {"stage": stage.name, "env_id": stage.env_id, "runs": runs, "mean": mean, "sources": sources}
-        if isinstance(stage, Guidance):
+        if isinstance(stage, ControllerEvaluation) and stage.rule is not None:
             methods[stage.method]["guidance"] = stage.rule
         if isinstance(stage, ControllerEvaluation) and stage.compared_with is not None:
             methods[stage.method]["baseline"] = by_name[stage.compared_with].method

@@ -2,9 +2,10 @@
 The stages of a transfer challenge, their configuration hash and the marker of a finished stage.
 
 A challenge is a list of stages run once per seed: :class:`ZooTrain` (a ``python -m sb3_pilot.experiments.zoo train`` run),
-:class:`Distill` (:func:`~sb3_pilot.distill_goal_planner` on a trained UDPO) and :class:`Guidance` (a pre-trained
-controller guided by a goal planner, :class:`~sb3_pilot.LandmarkGuidance`, with no training); :class:`Shipped`
-stands for a file that comes with the repository (a trained controller or planner) in place of a training stage.
+:class:`Distill` (:func:`~sb3_pilot.distill_goal_planner` on a trained teacher); :class:`Shipped` stands for a file
+that comes with the repository (a trained controller or planner) in place of a training stage. The stages of a trained
+controller (its checkpoint's choice, its evaluation guided or not) are in
+:mod:`sb3_pilot.experiments.challenges.controller`.
 Each stage writes into its own folder ``<root>/<challenge>/models/seed_<k>/<stage>/`` (``models/`` is gitignored)
 and, when it has finished, a marker ``stage.json`` holding the hash of its configuration (its settings and preset,
 its budget and the hashes of the stages it reads from). A stage whose marker matches is skipped on the next run; one without
@@ -32,10 +33,9 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_pilot.common.utils import check_number
-from sb3_pilot.distill import GoalPlanner, distill_goal_planner
+from sb3_pilot.distill import distill_goal_planner
 from sb3_pilot.experiments.evaluation import load_final_distances
 from sb3_pilot.experiments.zoo import hyperparams_dir, register, zoo_saved
-from sb3_pilot.transfer import LandmarkGuidance
 
 #: Marker a finished stage leaves in its folder.
 STAGE_MARKER = "stage.json"
@@ -457,112 +457,7 @@ class Shipped:
         """Nothing to run: the file is there (its hash was taken when planning)."""
 
 
-@dataclass(frozen=True)
-class Guidance:
-    """
-    Zero-shot transfer: a controller of an earlier stage, shown the landmarks of a distilled goal planner
-    (:class:`~sb3_pilot.LandmarkGuidance`), evaluated on ``env_id`` with no training there. The planner's path, the
-    success rate, the final distances to the goal and each episode's path and landmarks go to ``guidance.json``. At
-    a budget with steps for this stage (``smoke``), episodes end after that many steps.
-
-    :param name: stage name
-    :param planner: the :class:`Distill` (or :class:`Shipped`) stage of the planner
-    :param controller: the :class:`ZooTrain` (or :class:`Shipped`) stage of the controller
-    :param env_id: the task it is evaluated on
-    :param method: label in the summary
-    :param horizon: chained planner steps to the landmark (``LandmarkGuidance``'s ``horizon``)
-    :param switch_distance: distance to the real goal under which it replaces the landmark (``LandmarkGuidance``'s;
-        None: once it is closer than the landmark)
-    :param controller_algo: the zoo algorithm of the controller (None: from its zoo run folder)
-    """
-
-    name: str
-    planner: str
-    controller: str
-    env_id: str
-    method: str
-    horizon: int = 4
-    switch_distance: float | None = None
-    controller_algo: str | None = None
-
-    @property
-    def needs(self) -> tuple[str, ...]:
-        return (self.planner, self.controller)
-
-    @property
-    def rule(self) -> dict[str, Any]:
-        """The guidance horizon ``k`` and the switch rule, for the summary."""
-        switch = (
-            "the real goal once it is closer than the landmark"
-            if self.switch_distance is None
-            else f"the real goal once it is within {self.switch_distance}"
-        )
-        return {"horizon": self.horizon, "switch_distance": self.switch_distance, "switch_rule": switch}
-
-    def output(self, stage_dir: Path) -> Path:
-        """The evaluation's result file."""
-        return stage_dir / "guidance.json"
-
-    def config(self, ctx: StageContext, stage_dir: Path) -> dict[str, Any]:
-        return {
-            "planner": str(ctx.outputs[self.planner]),
-            "controller": str(ctx.outputs[self.controller]),
-            "env_id": self.env_id,
-            "horizon": self.horizon,
-            "switch_distance": self.switch_distance,
-            "episodes": ctx.budget.eval_episodes,
-            "max_episode_steps": ctx.steps.get(self.name),
-            "seed": ctx.seed,
-        }
-
-    def describe(self, ctx: StageContext, stage_dir: Path) -> str:
-        return (
-            f"guide {self.controller} with the landmarks of {self.planner} (k={self.horizon}) on {self.env_id}, "
-            f"{ctx.budget.eval_episodes} episodes"
-        )
-
-    def run(self, ctx: StageContext, stage_dir: Path) -> None:
-        """Run the guided controller for the budget's ``eval_episodes`` (deterministic actions)."""
-        controller, vec_normalize = load_zoo_model(ctx.outputs[self.controller], algo=self.controller_algo)
-        max_steps = ctx.steps.get(self.name)
-        task = gym.make(self.env_id, **({"max_episode_steps": max_steps} if max_steps else {}))
-        env = LandmarkGuidance(
-            task, GoalPlanner.load(ctx.outputs[self.planner]), horizon=self.horizon, switch_distance=self.switch_distance
-        )
-        successes, final_distances, episodes = [], [], []
-        for observation, info in play_episodes(controller, vec_normalize, env, ctx.budget.eval_episodes, ctx.seed):
-            successes.append(float(info["is_success"]))
-            goal = np.asarray(info["real_desired_goal"])
-            final_distances.append(float(np.linalg.norm(observation["achieved_goal"] - goal)))
-            episodes.append(
-                {
-                    "achieved_goals": env.episode_achieved_goals.tolist(),
-                    "landmarks": env.episode_landmarks.tolist(),
-                    "desired_goal": goal.tolist(),
-                }
-            )
-        stage_dir.mkdir(parents=True, exist_ok=True)
-        result = {
-            "planner": str(ctx.outputs[self.planner]),
-            "timesteps": [0],
-            "success_rate": [float(np.mean(successes))],
-            "successes": successes,
-            "final_distances": final_distances,
-            **self.rule,
-        }
-        self.output(stage_dir).write_text(json.dumps({**result, "episodes": episodes}))
-
-    def curve(self, stage_dir: Path) -> tuple[list[int], list[float]]:
-        """One point: the success rate after 0 steps on the task."""
-        result = json.loads(self.output(stage_dir).read_text())
-        return result["timesteps"], result["success_rate"]
-
-    def distances(self, stage_dir: Path) -> list[float]:
-        """One point: the mean final distance to the real goal."""
-        return [float(np.mean(json.loads(self.output(stage_dir).read_text())["final_distances"]))]
-
-
-Stage = ZooTrain | Distill | Shipped | Guidance
+Stage = ZooTrain | Distill | Shipped
 
 
 def config_hash(config: dict[str, Any], needs_hashes: list[str]) -> str:
