@@ -297,6 +297,58 @@ HIGH_DIM_ACTION_STEPS = {
     "cpu": {"source": 8000, "pilot": 8000, "her": 8000},
 }
 
+
+def _umaze_evaluations(controller: str, controller_algo: str | None = None) -> tuple[ControllerEvaluation, ...]:
+    """
+    ``pointmaze-to-antmaze``'s evaluations of an Ant controller stage: on ``AntMaze_UMaze-v5`` from the far start to
+    the far goal guided by the PointMaze planner (stage ``distill``) and unguided, and on its own open arena.
+
+    :param controller: the controller's stage
+    :param controller_algo: its zoo algorithm (None: from its zoo run folder)
+    """
+    # the far start and goal; success: gymnasium-robotics' (within 0.45), the episode ending there; the controller's
+    # inputs, without contact forces
+    far = {"maze_map": far_umaze_map(), "continuing_task": False, "include_cfrc_ext_in_observation": False}
+    return (
+        # an AntMaze goal is 4 times the PointMaze goal of the same place. k = 12: the lead Zero-shot
+        # Ant-Maze's k = 2-3 give its Maze2D planner, 1.1-1.75 Ant units from the far start, where this
+        # challenge's seed-0 planner plans 0.10 a step (k = 3: 0.31; k = 12: 1.23; python -m
+        # benchmarks.landmark_lead); the switch rule is Zero-shot Ant-Maze's
+        ControllerEvaluation(
+            "pilot",
+            controller,
+            "AntMaze_UMaze-v5",
+            "PILoT zero-shot (0 U-maze steps)",
+            planner="distill",
+            env_kwargs=far,
+            goal_scale=4.0,
+            horizon=12,
+            episodes=30,
+            controller_algo=controller_algo,
+            compared_with="unguided",
+        ),
+        ControllerEvaluation(
+            "unguided",
+            controller,
+            "AntMaze_UMaze-v5",
+            "the controller unguided (0 U-maze steps)",
+            env_kwargs=far,
+            episodes=30,
+            controller_algo=controller_algo,
+        ),
+        # the controller's own task, for scale: open-arena goals of AntMaze_Open-v5 (not a compared method)
+        ControllerEvaluation(
+            "open_ground",
+            controller,
+            "AntMaze_Open-v5",
+            None,
+            env_kwargs={"continuing_task": False, "include_cfrc_ext_in_observation": False},
+            episodes=30,
+            controller_algo=controller_algo,
+        ),
+    )
+
+
 CHALLENGES: dict[str, Challenge] = {
     challenge.name: challenge
     for challenge in (
@@ -446,49 +498,7 @@ CHALLENGES: dict[str, Challenge] = {
                 # the checkpoint the stages below evaluate: chosen on held-out episodes of its own open-arena task (no
                 # U-maze episode), by success, ties by mean final distance
                 ChooseCheckpoint("chosen", "controller", episodes=30),
-                # an AntMaze goal is 4 times the PointMaze goal of the same place. k = 12: the lead Zero-shot
-                # Ant-Maze's k = 2-3 give its Maze2D planner, 1.1-1.75 Ant units from the far start, where this
-                # challenge's seed-0 planner plans 0.10 a step (k = 3: 0.31; k = 12: 1.23; python -m
-                # benchmarks.landmark_lead); the switch rule is Zero-shot Ant-Maze's. Success: gymnasium-robotics'
-                # (within 0.45), the episode ending there (continuing_task False); the controller's inputs, without
-                # contact forces
-                ControllerEvaluation(
-                    "pilot",
-                    "chosen",
-                    "AntMaze_UMaze-v5",
-                    "PILoT zero-shot (0 U-maze steps)",
-                    planner="distill",
-                    env_kwargs={
-                        "maze_map": far_umaze_map(),
-                        "continuing_task": False,
-                        "include_cfrc_ext_in_observation": False,
-                    },
-                    goal_scale=4.0,
-                    horizon=12,
-                    episodes=30,
-                    compared_with="unguided",
-                ),
-                ControllerEvaluation(
-                    "unguided",
-                    "chosen",
-                    "AntMaze_UMaze-v5",
-                    "the controller unguided (0 U-maze steps)",
-                    env_kwargs={
-                        "maze_map": far_umaze_map(),
-                        "continuing_task": False,
-                        "include_cfrc_ext_in_observation": False,
-                    },
-                    episodes=30,
-                ),
-                # the controller's own task, for scale: open-arena goals of AntMaze_Open-v5 (not a compared method)
-                ControllerEvaluation(
-                    "open_ground",
-                    "chosen",
-                    "AntMaze_Open-v5",
-                    None,
-                    env_kwargs={"continuing_task": False, "include_cfrc_ext_in_observation": False},
-                    episodes=30,
-                ),
+                *_umaze_evaluations("chosen"),
             ),
             steps={
                 "smoke": {"teacher": 600, "controller": 500, "chosen": 50, "pilot": 50, "unguided": 50, "open_ground": 50},
