@@ -6,6 +6,7 @@ of the way scores 0 success, and only the distance says whether it moves towards
 from __future__ import annotations
 
 import os
+import warnings
 from typing import Any
 
 import numpy as np
@@ -34,14 +35,32 @@ class GoalEvalCallback(EvalCallback):
     goal at the end of the evaluation episodes: logged as ``eval/final_distance`` and saved in ``evaluations.npz``
     as ``final_distances`` (one value per evaluation, beside ``successes``). Same parameters as ``EvalCallback``.
     The zoo entry (:func:`sb3_pilot.experiments.zoo.register`) makes the RL Zoo evaluate with it.
+
+    Success and distance are recorded at the episode ends ``evaluate_policy`` counts: on an env wrapped with a
+    ``Monitor``, those the ``Monitor`` records. An episode ended by a wrapper above the ``Monitor`` (the zoo applies
+    ``env_wrapper`` above its own ``Monitor``) is not counted (``evaluate_policy`` reads it as an Atari life lost),
+    and would make ``successes`` ragged (SB3's ``EvalCallback`` then fails to save it): such an end is left out, with
+    a warning once, which names the remedy, a ``Monitor`` last in ``env_wrapper``.
     """
 
     def __init__(self, *args: Any, **kwargs: Any):
         super().__init__(*args, **kwargs)
         self.evaluations_final_distance: list[float] = []
         self._episode_distances: list[float] = []
+        self._warned_uncounted_end = False
 
     def _log_success_callback(self, locals_: dict[str, Any], globals_: dict[str, Any]) -> None:
+        if locals_["done"] and locals_.get("is_monitor_wrapped") and "episode" not in locals_["info"]:
+            if not self._warned_uncounted_end:
+                warnings.warn(
+                    "An evaluation episode ended without its Monitor's record: a wrapper above the Monitor ended it "
+                    "(the RL Zoo applies env_wrapper above its Monitor), and evaluate_policy does not count it as an "
+                    "episode. Its success is left out. To count such ends, put stable_baselines3.common.monitor.Monitor "
+                    "last in env_wrapper.",
+                    stacklevel=2,
+                )
+                self._warned_uncounted_end = True
+            return
         super()._log_success_callback(locals_, globals_)
         if locals_["done"]:
             info = dict(locals_["info"])

@@ -510,8 +510,8 @@ CHALLENGES: dict[str, Challenge] = {
         Challenge(
             "zero-shot-ant-maze",
             "UDPO on 2D-Maze (wall margin 1) -> distilled goal planner guiding an open-ground SAC Ant controller "
-            "(cpu/ant_controller_upright.yml) on Ant-Maze (0 Ant-Maze steps), vs SAC+HER trained on Ant-Maze for "
-            "as many steps",
+            "(cpu/ant_controller_upright.yml) on Ant-Maze (0 Ant-Maze steps), vs the same controller unguided and "
+            "SAC+HER trained on Ant-Maze for as many steps",
             "Pilot/AntMaze-v0",
             (
                 # starts and goals uniform over the maze, so the planner knows its geometry everywhere (the paper
