@@ -502,8 +502,8 @@ CHALLENGES: dict[str, Challenge] = {
             ),
             steps={
                 "smoke": {"teacher": 600, "controller": 500, "chosen": 50, "pilot": 50, "unguided": 50, "open_ground": 50},
-                # named, not run: the teacher's is cpu/sac.yml's PointMaze budget, the controller's the upright
-                # recipe's best-guiding checkpoint on Pilot/AntLocomotion-v0
+                # the teacher's is cpu/sac.yml's PointMaze budget, the controller's the upright recipe's best-guiding
+                # checkpoint on Pilot/AntLocomotion-v0 (seed 0: zoo_runs/pointmaze-to-antmaze)
                 "cpu": {"teacher": 50_000, "controller": 350_000},
             },
         ),
