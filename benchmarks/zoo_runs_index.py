@@ -66,11 +66,12 @@ def readme_of(folder: Path, root: Path) -> Path | None:
 
 def rows(root: Path) -> list[tuple[str, str]]:
     """``(sort key, markdown row)`` of every summary and every README-only folder under ``root``."""
-    summaries = [path for path in root.rglob("summary.json") if "models" not in path.relative_to(root).parts]
+    found_summaries = [path for path in root.rglob("summary.json") if "models" not in path.relative_to(root).parts]
+    # a challenge's summary (a benchmark's own summary.json, e.g. image_recipe's, is indexed by its README)
+    summaries = {path: summary for path in found_summaries if "methods" in (summary := json.loads(path.read_text()))}
     with_summary = {parent for path in summaries for parent in path.relative_to(root).parents}
     found = []
-    for path in summaries:
-        summary = json.loads(path.read_text())
+    for path, summary in summaries.items():
         name = path.parent.relative_to(root).as_posix()
         readme = readme_of(path.parent, root)
         link = f"[{name}]({readme.relative_to(root).as_posix()})" if readme else name
