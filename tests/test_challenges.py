@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -57,16 +58,20 @@ def test_steps_to() -> None:
 
 def test_a_comparison_names_a_method_of_the_challenge() -> None:
     """A controller evaluation compared with a stage that is no compared method of its challenge: refused at once."""
-    import dataclasses
-
-    from sb3_pilot.experiments.challenges import CHALLENGES
-
     wall = CHALLENGES["wall-maze-car"]
     stages = tuple(
         dataclasses.replace(stage, compared_with="controller") if stage.name == "guided" else stage for stage in wall.stages
     )
     with pytest.raises(ValueError, match="'guided' of wall-maze-car is compared with 'controller'"):
         dataclasses.replace(wall, stages=stages)
+
+
+def test_only_stages_keeps_what_a_method_is_compared_with() -> None:
+    """Asking for a guided controller brings the unguided one it is compared with, and what both read from."""
+    kept = [stage.name for stage in only_stages(CHALLENGES["wall-maze-car"], ["guided"]).stages]
+    assert kept == ["teacher", "distill", "controller", "guided", "unguided"]
+    kept = [stage.name for stage in only_stages(CHALLENGES["zero-shot-ant-maze"], ["pilot"]).stages]
+    assert kept == ["maze", "distill", "controller", "chosen", "pilot", "unguided"]
 
 
 def test_unknown_challenge(tmp_path: Path) -> None:

@@ -681,7 +681,8 @@ REUSE_SHIPPED: dict[str, Challenge] = {
 
 def only_stages(challenge: Challenge, names: list[str]) -> Challenge:
     """
-    The challenge reduced to the stages ``names`` and, transitively, those they read from.
+    The challenge reduced to the stages ``names`` and, transitively, those they read from and those they are compared
+    with (a guided controller's ``compared_with``).
 
     :param challenge: the challenge
     :param names: stage names
@@ -697,4 +698,7 @@ def only_stages(challenge: Challenge, names: list[str]) -> Challenge:
         if name not in kept:
             kept.add(name)
             todo.extend(stages[name].needs)
+            stage = stages[name]
+            if isinstance(stage, ControllerEvaluation) and stage.compared_with is not None:
+                todo.append(stage.compared_with)
     return dataclasses.replace(challenge, stages=tuple(stage for stage in challenge.stages if stage.name in kept))
