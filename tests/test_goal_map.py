@@ -70,6 +70,9 @@ def test_share_goal_space_with_a_map_refusals(monkeypatch):
     with pytest.raises(ValueError, match="already share"):
         share_goal_space("A", "B", goal_map=GoalMap(2.0))
     share_goal_space("A", "C", goal_map=GoalMap(2.0, 1.0))
+    share_goal_space("A", "C", goal_map=GoalMap(2.0, 1.0))  # the same map again: nothing changes
+    with pytest.raises(ValueError, match="already share"):
+        share_goal_space("A", "C", goal_map=GoalMap(2.0, 0.5))
     assert planner_module.goal_map_between("A", "B") is None
     np.testing.assert_allclose(planner_module.goal_map_between("C", "A")(np.array([5.0, 3.0])), [2.0, 1.0])
     with pytest.raises(ValueError, match="already share"):

@@ -88,7 +88,8 @@ def share_goal_space(*task_ids: str, goal_map: GoalMap | None = None) -> None:
 
     With ``goal_map``, two tasks whose goals mean the same in other coordinates, ``g_second = goal_map(g_first)``:
     e.g. ``share_goal_space("PointMaze_UMaze-v3", "AntMaze_UMaze-v5", goal_map=GoalMap(4.0))``. A planner of either
-    task plans for the other through the map (both directions are declared).
+    task plans for the other through the map (both directions are declared). The same map declared again changes
+    nothing; another one is refused.
 
     :param task_ids: Gymnasium IDs (or, for unregistered envs, class names) of the tasks (exactly two with ``goal_map``)
     :param goal_map: the map from the first task's goal coordinates to the second's (None: the same coordinates)
@@ -106,6 +107,13 @@ def share_goal_space(*task_ids: str, goal_map: GoalMap | None = None) -> None:
     if len(task_ids) != 2 or task_ids[0] == task_ids[1]:
         raise ValueError(f"goal_map relates two different tasks, g_second = goal_map(g_first); got {task_ids}.")
     first, second = task_ids
+    declared = GOAL_MAPS.get((first, second))
+    if (
+        declared is not None
+        and np.array_equal(declared.matrix, goal_map.matrix)
+        and np.array_equal(declared.offset, goal_map.offset)
+    ):
+        return  # declared again with the same map (e.g. by each evaluation in one process)
     if shares_goal_space(first, second):
         raise ValueError(f"{first!r} and {second!r} already share a goal space ({goal_map_between(first, second)}).")
     GOAL_MAPS[(first, second)], GOAL_MAPS[(second, first)] = goal_map, goal_map.inverse()
