@@ -6,6 +6,9 @@ ridge regression from them to ``achieved_goal`` (the fingertip's or the gripper'
 thirds of the episodes and scored (R^2, averaged over the coordinates) on the rest. Beside it, the same probe of an
 untrained encoder (the model's, re-initialised). Trained features that predict the position no better than untrained
 ones say the encoder has not learned to see it: what limits the agent is its representation, not its critic or actor.
+And whether the policy reads its goal: the spread (standard deviation) of its deterministic actions on 100 of those
+frames each shown 8 goals drawn from the goal disk's area, against their spread over the frames; a policy whose actions
+do not move with the goal does not act towards it.
 
 Usage::
 
@@ -24,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import torch as th
+from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 from torch import nn
 
@@ -85,8 +89,30 @@ def probe_r2(features: np.ndarray, targets: np.ndarray, train: np.ndarray) -> fl
     return float(np.mean(1.0 - residual / total))
 
 
-def probe(model_path: Path, episodes: int, seed: int) -> tuple[float, float, int]:
-    """R^2 of the trained and of a re-initialised encoder's features, and the number of frames."""
+def goal_spread(model: BaseAlgorithm, observations: dict[str, np.ndarray], seed: int) -> tuple[float, float]:
+    """
+    The policy's deterministic actions on 100 frames, each with 8 goals drawn uniformly over the disk of the frames'
+    own goals' largest radius: their spread across the goals of a frame and across the frames of a goal draw.
+    """
+    rng = np.random.default_rng(seed)
+    frames = rng.choice(len(observations["desired_goal"]), size=min(100, len(observations["desired_goal"])), replace=False)
+    radius = np.linalg.norm(observations["desired_goal"], axis=-1).max()
+    actions = []
+    for _ in range(8):
+        shown = {key: value[frames].copy() for key, value in observations.items()}
+        distance, angle = radius * np.sqrt(rng.random(len(frames))), rng.random(len(frames)) * 2 * np.pi
+        goals = np.stack([distance * np.cos(angle), distance * np.sin(angle)], axis=1)
+        shown["desired_goal"] = goals.astype(shown["desired_goal"].dtype)
+        actions.append(model.predict(shown, deterministic=True)[0])
+    stacked = np.stack(actions)  # goals x frames x action
+    return float(stacked.std(axis=0).mean()), float(stacked.std(axis=1).mean())
+
+
+def probe(model_path: Path, episodes: int, seed: int) -> tuple[float, float, int, float, float]:
+    """
+    R^2 of the trained and of a re-initialised encoder's features, the number of frames, and the actions' spread
+    across goals and across frames (:func:`goal_spread`).
+    """
     model, _ = load_zoo_model(model_path, algo="sac")
     policy = model.policy
     policy.set_training_mode(False)
@@ -101,7 +127,7 @@ def probe(model_path: Path, episodes: int, seed: int) -> tuple[float, float, int
     trained_r2, untrained_r2 = (
         probe_r2(image_features(policy, extractor, observations), positions, train) for extractor in (trained, untrained)
     )
-    return trained_r2, untrained_r2, len(positions)
+    return (trained_r2, untrained_r2, len(positions), *goal_spread(model, observations, seed))
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -116,11 +142,14 @@ def main(argv: list[str] | None = None) -> None:
     if args.episodes < 3:
         parser.error("--episodes must be at least 3 (two thirds fit the probe, the rest score it)")
     print("python -m benchmarks.image_probe " + shlex.join(sys.argv[1:] if argv is None else argv))
-    print("| model | frames | R^2 of achieved_goal, trained encoder | R^2, the same encoder untrained |")
-    print("|---|---|---|---|")
+    print(
+        "| model | frames | R^2 of achieved_goal, trained encoder | R^2, the same encoder untrained | action spread "
+        "across goals | across frames |"
+    )
+    print("|---|---|---|---|---|---|")
     for path in args.models:
-        trained, untrained, frames = probe(path, args.episodes, args.seed)
-        print(f"| {path} | {frames} | {trained:.2f} | {untrained:.2f} |")
+        trained, untrained, frames, across_goals, across_frames = probe(path, args.episodes, args.seed)
+        print(f"| {path} | {frames} | {trained:.2f} | {untrained:.2f} | {across_goals:.3f} | {across_frames:.3f} |")
 
 
 if __name__ == "__main__":
