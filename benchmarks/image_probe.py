@@ -29,6 +29,7 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.vec_env import VecNormalize
 from torch import nn
 
 from sb3_pilot.experiments.challenges.controller import training_task
@@ -89,7 +90,9 @@ def probe_r2(features: np.ndarray, targets: np.ndarray, train: np.ndarray) -> fl
     return float(np.mean(1.0 - residual / total))
 
 
-def goal_spread(model: BaseAlgorithm, observations: dict[str, np.ndarray], seed: int) -> tuple[float, float]:
+def goal_spread(
+    model: BaseAlgorithm, vec_normalize: VecNormalize | None, observations: dict[str, np.ndarray], seed: int
+) -> tuple[float, float]:
     """
     The policy's deterministic actions on 100 frames, each with 8 goals drawn uniformly over the disk of the frames'
     own goals' largest radius: their spread across the goals of a frame and across the frames of a goal draw.
@@ -103,7 +106,8 @@ def goal_spread(model: BaseAlgorithm, observations: dict[str, np.ndarray], seed:
         distance, angle = radius * np.sqrt(rng.random(len(frames))), rng.random(len(frames)) * 2 * np.pi
         goals = np.stack([distance * np.cos(angle), distance * np.sin(angle)], axis=1)
         shown["desired_goal"] = goals.astype(shown["desired_goal"].dtype)
-        actions.append(model.predict(shown, deterministic=True)[0])
+        seen = vec_normalize.normalize_obs(shown) if vec_normalize is not None else shown
+        actions.append(model.predict(seen, deterministic=True)[0])
     stacked = np.stack(actions)  # goals x frames x action
     return float(stacked.std(axis=0).mean()), float(stacked.std(axis=1).mean())
 
@@ -113,7 +117,7 @@ def probe(model_path: Path, episodes: int, seed: int) -> tuple[float, float, int
     R^2 of the trained and of a re-initialised encoder's features, the number of frames, and the actions' spread
     across goals and across frames (:func:`goal_spread`).
     """
-    model, _ = load_zoo_model(model_path, algo="sac")
+    model, vec_normalize = load_zoo_model(model_path, algo="sac")
     policy = model.policy
     policy.set_training_mode(False)
     observations, positions, episode_of = random_frames(model_path, episodes, seed)
@@ -127,7 +131,7 @@ def probe(model_path: Path, episodes: int, seed: int) -> tuple[float, float, int
     trained_r2, untrained_r2 = (
         probe_r2(image_features(policy, extractor, observations), positions, train) for extractor in (trained, untrained)
     )
-    return (trained_r2, untrained_r2, len(positions), *goal_spread(model, observations, seed))
+    return (trained_r2, untrained_r2, len(positions), *goal_spread(model, vec_normalize, observations, seed))
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -7,6 +7,8 @@ Variants (``+`` combines them, e.g. ``hidden+stack3``):
 - ``drawn``: the preset itself (the target drawn in the frame, DrQ's ``random_shift=4``);
 - ``hidden``: the target hidden from the frame (``--env-kwargs show_target:False``);
 - ``noshift``: no random shift (the preset's ``policy_kwargs`` with ``random_shift=0``);
+- ``goalnorm``: the goal entries standardised by the zoo's ``VecNormalize`` (``-params normalize:...``, the frames
+  untouched), as the vector agents' entries are;
 - ``stack3``: the last 3 frames of the image entry stacked (``sb3_pilot.common.wrappers.ImageFrameStack``,
   ``n_frames=3``, after the preset's own ``env_wrapper``).
 
@@ -71,6 +73,9 @@ CONF_FILE = "image/sac.yml"
 ZOO = ("-m", "sb3_pilot.experiments.zoo")
 #: The frame stack of the ``stack3`` variant.
 FRAME_STACK = "sb3_pilot.common.wrappers.ImageFrameStack"
+#: The ``goalnorm`` variant's ``normalize``: the goal entries only (the vector sources' agents see every entry
+#: standardised; a pixel agent's raw goals are about 5 times smaller than its image features, 2 inputs of 258).
+GOAL_NORMALIZE = "dict(norm_obs_keys=['achieved_goal', 'desired_goal'], norm_reward=False)"
 #: Seconds a run stopped by the time limit has to save and exit before it is killed.
 GRACE_S = 30.0
 #: Success rate whose first step is reported.
@@ -81,11 +86,15 @@ IQM_CUT = 0.25
 
 @dataclass
 class Changes:
-    """What a variant changes in the preset: the task's kwargs, the extractor's kwargs, wrappers added after the preset's."""
+    """
+    What a variant changes in the preset: the task's kwargs, the extractor's kwargs, wrappers added after the preset's
+    and other hyperparameters (set as they are).
+    """
 
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     extractor_kwargs: dict[str, Any] = field(default_factory=dict)
     wrappers: list[dict[str, Any]] = field(default_factory=list)
+    hyperparams: dict[str, Any] = field(default_factory=dict)
 
 
 def _hidden(changes: Changes) -> None:
@@ -100,12 +109,21 @@ def _stack3(changes: Changes) -> None:
     changes.wrappers.append({FRAME_STACK: {"n_frames": 3}})
 
 
+def _goalnorm(changes: Changes) -> None:
+    # the zoo's VecNormalize on the goal entries only (the frames stay uint8); a string, which the zoo evaluates.
+    # The frames transposed below it: the zoo would put its VecTransposeImage above the VecNormalize, whose original
+    # (untransposed) observations SB3's off-policy algorithms store (rl-baselines3-zoo issue 312)
+    changes.hyperparams["normalize"] = GOAL_NORMALIZE
+    changes.hyperparams["vec_env_wrapper"] = "stable_baselines3.common.vec_env.VecTransposeImage"
+
+
 #: The variants, each with what it changes in the preset and its description.
 VARIANTS: dict[str, tuple[Callable[[Changes], None], str]] = {
     "drawn": (lambda changes: None, "the preset: target drawn, random_shift=4"),
     "hidden": (_hidden, "target hidden from the frame (show_target=False)"),
     "noshift": (_noshift, "no random shift (random_shift=0)"),
     "stack3": (_stack3, "3 frames of the image entry stacked (ImageFrameStack)"),
+    "goalnorm": (_goalnorm, "the goal entries standardised by the zoo's VecNormalize (frames untouched)"),
 }
 
 
@@ -172,6 +190,7 @@ def variant_args(entry: dict[str, Any], changes: Changes) -> list[str]:
         wrappers = entry.get("env_wrapper") or []
         wrappers = [wrappers] if isinstance(wrappers, (str, dict)) else list(wrappers)
         params.append(f"env_wrapper:{literal(wrappers + changes.wrappers)}")
+    params += [f"{key}:{literal(value)}" for key, value in changes.hyperparams.items()]
     return [*args, "-params", *params] if params else args
 
 

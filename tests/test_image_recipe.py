@@ -8,11 +8,13 @@ import shlex
 import textwrap
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from rl_zoo3.utils import StoreDict
 
 from benchmarks import image_recipe
+from sb3_pilot.experiments.challenges.stages import load_zoo_model
 from sb3_pilot.experiments.statistics import iqm
 
 TASK = "Pilot/ReacherImage-v0"
@@ -71,6 +73,10 @@ def test_variant_args_as_the_zoo_reads_them() -> None:
     assert preset_kwargs["random_shift"] == 4
     assert parsed.hyperparams["policy_kwargs"] == {"features_extractor_kwargs": {**preset_kwargs, "random_shift": 0}}
     assert parsed.hyperparams["env_wrapper"] == [{image_recipe.FRAME_STACK: {"n_frames": 3}}]
+    # the zoo evaluates a string normalize into VecNormalize's kwargs: the goal entries only
+    parsed = parser.parse_args(image_recipe.variant_args(entry, image_recipe.parse_variant("hidden+goalnorm")))
+    assert eval(parsed.hyperparams["normalize"]) == {"norm_obs_keys": ["achieved_goal", "desired_goal"], "norm_reward": False}
+    assert parsed.hyperparams["vec_env_wrapper"] == "stable_baselines3.common.vec_env.VecTransposeImage"
 
 
 def test_iqm_is_rliables() -> None:
@@ -170,3 +176,18 @@ def test_another_command_is_refused(tmp_path: Path, fake_zoo: Path) -> None:
     args[args.index("--steps") + 1] = "600"
     with pytest.raises(SystemExit, match="holds a run of another command"):
         image_recipe.main(args)
+
+
+def test_goalnorm_run_trains_and_loads(tmp_path: Path) -> None:
+    """A real zoo run of the goalnorm variant: its VecNormalize (goals only, over transposed frames) saves and loads."""
+    image_recipe.main(recipe(tmp_path, "--variants", "hidden+goalnorm", "--seeds", "0"))
+    model_path = tmp_path / "hidden+goalnorm" / "seed_0" / "sac" / "Pilot-ReacherImage-v0_1" / "Pilot-ReacherImage-v0.zip"
+    model, vec_normalize = load_zoo_model(model_path, algo="sac")
+    assert vec_normalize is not None and vec_normalize.norm_obs_keys == ["achieved_goal", "desired_goal"]
+    env = gym.make(TASK, show_target=False)
+    observation, _ = env.reset(seed=0)
+    normalized = vec_normalize.normalize_obs(observation)
+    assert np.array_equal(normalized["observation"], observation["observation"])  # the frame untouched
+    assert not np.allclose(normalized["desired_goal"], observation["desired_goal"])
+    action, _ = model.predict(normalized, deterministic=True)
+    assert env.action_space.contains(action)

@@ -30,7 +30,7 @@ import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import configure
-from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
 
 from sb3_pilot.common.utils import check_number
 from sb3_pilot.distill import distill_goal_planner
@@ -146,6 +146,15 @@ def vecnormalize_path(model_path: Path) -> Path:
     return model_path.parent / model_path.stem / "vecnormalize.pkl"
 
 
+def _statistics_venv(model_path: Path) -> VecEnv:
+    """The run's task as the zoo wrapped it below its ``VecNormalize`` (with the run's ``vec_env_wrapper``, if any)."""
+    from rl_zoo3.utils import get_wrapper_class
+
+    venv: VecEnv = DummyVecEnv([lambda: gym.make(zoo_env_id(model_path))])
+    wrapper = get_wrapper_class(zoo_saved(model_path, "config.yml"), "vec_env_wrapper")
+    return venv if wrapper is None else wrapper(venv)
+
+
 def load_zoo_model(
     model_path: Path, env: DummyVecEnv | None = None, algo: str | None = None
 ) -> tuple[BaseAlgorithm, VecNormalize | None]:
@@ -165,7 +174,7 @@ def load_zoo_model(
     stats = vecnormalize_path(model_path)
     vec_normalize = None
     if stats.exists():
-        vec_normalize = VecNormalize.load(str(stats), env or DummyVecEnv([lambda: gym.make(zoo_env_id(model_path))]))
+        vec_normalize = VecNormalize.load(str(stats), env or _statistics_venv(model_path))
         vec_normalize.training = False
     if env is None:  # a HER buffer cannot be built without the env: the policy alone
         custom = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}
