@@ -47,6 +47,12 @@ def evaluation(name: str) -> ControllerEvaluation:
     return stage
 
 
+def stage_outputs(seed_dir: Path) -> dict[str, Path]:
+    """The output files of the seed's ``chosen`` and ``distill`` stages, where the challenge's stages put them."""
+    stages = [stage for stage in CHALLENGE.stages if stage.name in ("chosen", "distill")]
+    return {stage.name: stage.output(seed_dir / stage.name) for stage in stages}
+
+
 def run(seed_dir: Path, seed: int, name: str, max_steps: int, episodes: int) -> dict[str, object]:
     """
     The evaluation stage ``name`` of the seed in ``seed_dir``, its episodes cut at ``max_steps``.
@@ -54,10 +60,7 @@ def run(seed_dir: Path, seed: int, name: str, max_steps: int, episodes: int) -> 
     :return: success rate, mean final distance and, guided, the step each episode first reached each part (None: never)
     """
     stage = evaluation(name)
-    outputs = {
-        "chosen": seed_dir / "chosen" / "controller.zip",
-        "distill": seed_dir / "distill" / "planner.pt",
-    }
+    outputs = stage_outputs(seed_dir)
     ctx = StageContext(seed_dir, seed, BUDGETS["cpu"], {name: max_steps}, {}, outputs)
     controller, vec_normalize = load_zoo_model(outputs[stage.controller], algo=stage.controller_algo)
     env = stage.make_env(ctx)
@@ -79,7 +82,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--max-steps", type=int, nargs="+", default=[700, 1000, 1500])
     parser.add_argument("--episodes", type=int, default=30)
     args = parser.parse_args(argv)
-    missing = [p for p in ("chosen/controller.zip", "distill/planner.pt") if not (args.seed_dir / p).is_file()]
+    missing = [str(path) for path in stage_outputs(args.seed_dir).values() if not path.is_file()]
     if missing or not args.seed_dir.name.startswith("seed_"):
         parser.error(f"{args.seed_dir} is not a finished seed of {CHALLENGE.name} (models/seed_<k>): missing {missing}")
     if args.episodes < 1 or min(args.max_steps) < 1:
