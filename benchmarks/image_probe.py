@@ -3,7 +3,8 @@ Does a pixel agent's encoder see where the arm is? A linear probe of the image f
 task (e.g. a run of ``benchmarks.image_recipe``): frames of random-action episodes of its training task (rebuilt from
 the run's saved settings), the image features of the policy's encoder (in evaluation mode: no augmentation), and a
 ridge regression from them to ``achieved_goal`` (the fingertip's or the gripper's position), fitted on the first two
-thirds of the episodes and scored (R^2, averaged over the coordinates) on the rest. Beside it, the same probe of an
+thirds of the episodes and scored on the rest (R^2, averaged over the coordinates, and the median distance between
+predicted and true position, to set beside the task's success radius). Beside it, the same probe of an
 untrained encoder (the model's, re-initialised). Trained features that predict the position no better than untrained
 ones say the encoder has not learned to see it: what limits the agent is its representation, not its critic or actor.
 And whether the policy reads its goal: the spread (standard deviation) of its deterministic actions on 100 of those
@@ -77,17 +78,20 @@ def image_features(policy: BasePolicy, extractor: nn.Module, observations: dict[
     return np.concatenate(features)
 
 
-def probe_r2(features: np.ndarray, targets: np.ndarray, train: np.ndarray) -> float:
-    """R^2 on the held-out rows of a ridge regression fitted on the ``train`` rows (mean over target coordinates)."""
+def probe_r2(features: np.ndarray, targets: np.ndarray, train: np.ndarray) -> tuple[float, float]:
+    """
+    R^2 on the held-out rows of a ridge regression fitted on the ``train`` rows (mean over target coordinates), and the
+    median Euclidean error of its held-out predictions (in the goal's units, to set beside the success radius).
+    """
     mean, std = features[train].mean(axis=0), features[train].std(axis=0) + 1e-8
     x = np.hstack([(features - mean) / std, np.ones((len(features), 1))])
     penalty = RIDGE * np.eye(x.shape[1])
     penalty[-1, -1] = 0.0  # no penalty on the intercept
     weights = np.linalg.solve(x[train].T @ x[train] + penalty, x[train].T @ targets[train])
     test = ~train
-    residual = ((targets[test] - x[test] @ weights) ** 2).sum(axis=0)
+    error = targets[test] - x[test] @ weights
     total = ((targets[test] - targets[test].mean(axis=0)) ** 2).sum(axis=0)
-    return float(np.mean(1.0 - residual / total))
+    return float(np.mean(1.0 - (error**2).sum(axis=0) / total)), float(np.median(np.linalg.norm(error, axis=-1)))
 
 
 def goal_spread(
@@ -112,12 +116,12 @@ def goal_spread(
     return float(stacked.std(axis=0).mean()), float(stacked.std(axis=1).mean())
 
 
-def probe(model_path: Path, episodes: int, seed: int) -> tuple[float, float, int, float, float]:
+def probe(model_path: Path, episodes: int, seed: int) -> tuple[tuple[float, float], tuple[float, float], int, float, float]:
     """
-    R^2 of the trained and of a re-initialised encoder's features, the number of frames, and the actions' spread
-    across goals and across frames (:func:`goal_spread`).
+    R^2 and median error (:func:`probe_r2`) of the trained and of a re-initialised encoder's features, the number of
+    frames, and the actions' spread across goals and across frames (:func:`goal_spread`).
     """
-    model, vec_normalize = load_zoo_model(model_path, algo="sac")
+    model, vec_normalize = load_zoo_model(model_path)
     policy = model.policy
     policy.set_training_mode(False)
     observations, positions, episode_of = random_frames(model_path, episodes, seed)
@@ -147,13 +151,18 @@ def main(argv: list[str] | None = None) -> None:
         parser.error("--episodes must be at least 3 (two thirds fit the probe, the rest score it)")
     print("python -m benchmarks.image_probe " + shlex.join(sys.argv[1:] if argv is None else argv))
     print(
-        "| model | frames | R^2 of achieved_goal, trained encoder | R^2, the same encoder untrained | action spread "
-        "across goals | across frames |"
+        "| model | frames | R^2 of achieved_goal, trained encoder | its median error | R^2, the same encoder untrained "
+        "| its median error | action spread across goals | across frames |"
     )
-    print("|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     for path in args.models:
-        trained, untrained, frames, across_goals, across_frames = probe(path, args.episodes, args.seed)
-        print(f"| {path} | {frames} | {trained:.2f} | {untrained:.2f} | {across_goals:.3f} | {across_frames:.3f} |")
+        (trained, trained_error), (untrained, untrained_error), frames, across_goals, across_frames = probe(
+            path, args.episodes, args.seed
+        )
+        print(
+            f"| {path} | {frames} | {trained:.2f} | {trained_error:.3f} | {untrained:.2f} | {untrained_error:.3f} "
+            f"| {across_goals:.3f} | {across_frames:.3f} |"
+        )
 
 
 if __name__ == "__main__":

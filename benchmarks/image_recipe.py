@@ -10,7 +10,9 @@ Variants (``+`` combines them, e.g. ``hidden+stack3``):
 - ``goalnorm``: the goal entries standardised by the zoo's ``VecNormalize`` (``-params normalize:...``, the frames
   untouched), as the vector agents' entries are;
 - ``stack3``: the last 3 frames of the image entry stacked (``sb3_pilot.common.wrappers.ImageFrameStack``,
-  ``n_frames=3``, after the preset's own ``env_wrapper``).
+  ``n_frames=3``, after the preset's own ``env_wrapper``);
+- ``goalpred``: the encoder also trained to predict the achieved goal (``PixelGoalSACPolicy``'s
+  ``goal_prediction=1.0``), which needs the package's SAC: ``--algo lean_sac`` (SB3's SAC's numbers otherwise).
 
 Each run is ``python -m sb3_pilot.experiments.zoo train --algo sac --env TASK --conf-file image/sac.yml --seed S
 -n STEPS --eval-freq F --eval-episodes E --num-threads 1 -f . [--device D] [the variant's --env-kwargs / -params]``,
@@ -76,6 +78,8 @@ FRAME_STACK = "sb3_pilot.common.wrappers.ImageFrameStack"
 #: The ``goalnorm`` variant's ``normalize``: the goal entries only (the vector sources' agents see every entry
 #: standardised; a pixel agent's raw goals are about 5 times smaller than its image features, 2 inputs of 258).
 GOAL_NORMALIZE = "dict(norm_obs_keys=['achieved_goal', 'desired_goal'], norm_reward=False)"
+#: The ``goalpred`` variant's weight of the goal-prediction loss.
+GOAL_PREDICTION = 1.0
 #: Seconds a run stopped by the time limit has to save and exit before it is killed.
 GRACE_S = 30.0
 #: Success rate whose first step is reported.
@@ -87,11 +91,13 @@ IQM_CUT = 0.25
 @dataclass
 class Changes:
     """
-    What a variant changes in the preset: the task's kwargs, the extractor's kwargs, wrappers added after the preset's
-    and other hyperparameters (set as they are).
+    What a variant changes in the preset: the zoo algorithm, the task's kwargs, the policy's and the extractor's
+    kwargs, wrappers added after the preset's and other hyperparameters (set as they are).
     """
 
+    algo: str = "sac"
     env_kwargs: dict[str, Any] = field(default_factory=dict)
+    policy_kwargs: dict[str, Any] = field(default_factory=dict)
     extractor_kwargs: dict[str, Any] = field(default_factory=dict)
     wrappers: list[dict[str, Any]] = field(default_factory=list)
     hyperparams: dict[str, Any] = field(default_factory=dict)
@@ -117,6 +123,12 @@ def _goalnorm(changes: Changes) -> None:
     changes.hyperparams["vec_env_wrapper"] = "stable_baselines3.common.vec_env.VecTransposeImage"
 
 
+def _goalpred(changes: Changes) -> None:
+    # the auxiliary loss is added by the package's SAC (LeanSAC: SB3's SAC's numbers otherwise)
+    changes.algo = "lean_sac"
+    changes.policy_kwargs["goal_prediction"] = GOAL_PREDICTION
+
+
 #: The variants, each with what it changes in the preset and its description.
 VARIANTS: dict[str, tuple[Callable[[Changes], None], str]] = {
     "drawn": (lambda changes: None, "the preset: target drawn, random_shift=4"),
@@ -124,6 +136,7 @@ VARIANTS: dict[str, tuple[Callable[[Changes], None], str]] = {
     "noshift": (_noshift, "no random shift (random_shift=0)"),
     "stack3": (_stack3, "3 frames of the image entry stacked (ImageFrameStack)"),
     "goalnorm": (_goalnorm, "the goal entries standardised by the zoo's VecNormalize (frames untouched)"),
+    "goalpred": (_goalpred, f"the encoder also predicts the achieved goal (goal_prediction={GOAL_PREDICTION}, lean_sac)"),
 }
 
 
@@ -181,11 +194,14 @@ def variant_args(entry: dict[str, Any], changes: Changes) -> list[str]:
     if changes.env_kwargs:
         args += ["--env-kwargs", *(f"{key}:{literal(value)}" for key, value in changes.env_kwargs.items())]
     params = []
-    if changes.extractor_kwargs:
+    if changes.extractor_kwargs or changes.policy_kwargs:
         policy_kwargs = entry.get("policy_kwargs", {})
         policy_kwargs = dict(eval(policy_kwargs) if isinstance(policy_kwargs, str) else policy_kwargs)  # as the zoo reads it
-        extractor_kwargs = {**policy_kwargs.get("features_extractor_kwargs", {}), **changes.extractor_kwargs}
-        params.append(f"policy_kwargs:{literal(dict(policy_kwargs, features_extractor_kwargs=extractor_kwargs))}")
+        policy_kwargs.update(changes.policy_kwargs)
+        if changes.extractor_kwargs:
+            extractor_kwargs = {**policy_kwargs.get("features_extractor_kwargs", {}), **changes.extractor_kwargs}
+            policy_kwargs["features_extractor_kwargs"] = extractor_kwargs
+        params.append(f"policy_kwargs:{literal(policy_kwargs)}")
     if changes.wrappers:
         wrappers = entry.get("env_wrapper") or []
         wrappers = [wrappers] if isinstance(wrappers, (str, dict)) else list(wrappers)
@@ -229,10 +245,11 @@ def plan_runs(args: argparse.Namespace) -> list[Run]:
         raise ValueError(f"--variants repeats a variant: {args.variants}.")
     if args.jobs < 1 or (args.time_limit is not None and args.time_limit <= 0):
         raise ValueError("--jobs must be at least 1 and --time-limit positive.")
-    base = ["train", "--algo", "sac", "--env", args.task, "--conf-file", CONF_FILE]
     runs = []
     for variant in args.variants:
-        extra = variant_args(entry, parse_variant(variant))
+        changes = parse_variant(variant)
+        base = ["train", "--algo", changes.algo, "--env", args.task, "--conf-file", CONF_FILE]
+        extra = variant_args(entry, changes)
         for seed in args.seeds:
             settings = ["--seed", str(seed), "-n", str(args.steps), "--eval-freq", str(args.eval_freq)]
             settings += ["--eval-episodes", str(args.eval_episodes), "--num-threads", "1", "-f", "."]
@@ -257,7 +274,7 @@ def evaluations(folder: Path) -> dict[str, np.ndarray] | None:
     A run's evaluations (``timesteps``, ``success_rate``, ``final_distance``), None before its first; an evaluation
     cut short by a stop (``final_distances`` one shorter) is left out.
     """
-    paths = sorted(folder.glob("sac/*_[0-9]*/evaluations.npz"), key=lambda path: int(path.parent.name.rsplit("_", 1)[1]))
+    paths = sorted(folder.glob("*/*_[0-9]*/evaluations.npz"), key=lambda path: int(path.parent.name.rsplit("_", 1)[1]))
     if not paths:
         return None
     try:

@@ -1,6 +1,6 @@
 """
 PixelGoalExtractor reads the image and the desired goal only; PixelGoalSACPolicy trains it by the critic's loss;
-RandomShift (DrQ's augmentation) acts in training only.
+RandomShift (DrQ's augmentation) acts in training only; the auxiliary goal prediction trains the encoder under LeanSAC.
 """
 
 from __future__ import annotations
@@ -14,12 +14,13 @@ from gymnasium import spaces
 from image_envs import SIZE, ImageGoalEnv
 from stable_baselines3 import SAC, HerReplayBuffer
 from stable_baselines3.common.preprocessing import preprocess_obs
+from stable_baselines3.common.torch_layers import CombinedExtractor
 
 from sb3_pilot.common.torch_layers import PixelGoalExtractor, PixelGoalSACPolicy, RandomShift
 from sb3_pilot.sac import LeanSAC
 
 
-def make_sac(encoder: str, seed: int = 0, random_shift: int = 0, algo: type[SAC] = SAC) -> SAC:
+def make_sac(encoder: str, seed: int = 0, random_shift: int = 0, algo: type[SAC] = SAC, goal_prediction: float = 0.0) -> SAC:
     return algo(
         PixelGoalSACPolicy,
         ImageGoalEnv(),
@@ -27,7 +28,11 @@ def make_sac(encoder: str, seed: int = 0, random_shift: int = 0, algo: type[SAC]
         buffer_size=1000,
         learning_starts=20,
         batch_size=16,
-        policy_kwargs={"net_arch": [16, 16], "features_extractor_kwargs": {"encoder": encoder, "random_shift": random_shift}},
+        policy_kwargs={
+            "net_arch": [16, 16],
+            "features_extractor_kwargs": {"encoder": encoder, "random_shift": random_shift},
+            "goal_prediction": goal_prediction,
+        },
         seed=seed,
         device="cpu",
     )
@@ -228,3 +233,73 @@ def test_random_shift_bad_input() -> None:
     vector = spaces.Dict({**space.spaces, "observation": spaces.Box(-1.0, 1.0, shape=(5,))})
     with pytest.raises(ValueError, match=r"must be an image space.*random_shift augments it"):
         PixelGoalExtractor(vector, random_shift=4)
+
+
+# ---------------------------------------- Auxiliary goal prediction
+
+
+def test_goal_prediction_loss_trains_the_encoder_and_its_head(tmp_path: Any) -> None:
+    """
+    LeanSAC adds the weighted loss to the critic's: it is logged, equals its formula on the critic's batch, moves the
+    head and the encoder, is saved with the policy; without it the critic has no head; SB3's SAC refuses to train it.
+    """
+    plain = make_sac("nature", algo=LeanSAC)
+    assert plain.policy.critic.goal_head is None and plain.policy.goal_prediction == 0.0
+    model = make_sac("nature", algo=LeanSAC, goal_prediction=2.0)
+    policy = model.policy
+    head = policy.critic.goal_head
+    assert head is not None and (head.in_features, head.out_features) == (256, 2)
+    critic_params = {id(param) for group in policy.critic.optimizer.param_groups for param in group["params"]}
+    assert {id(param) for param in head.parameters()} <= critic_params
+    # the loss on a batch: the head on the critic's image features against achieved_goal
+    model.learn(30)
+    batch = model.replay_buffer.sample(8, env=model._vec_normalize_env)
+    policy.critic(batch.observations, batch.actions)
+    image = policy.critic.extract_features(batch.observations, policy.critic.features_extractor)[:, :256]
+    expected = ((head(image) - batch.observations["achieved_goal"]) ** 2).sum(dim=1).mean()
+    th.testing.assert_close(policy.goal_prediction_loss(batch.observations), expected)
+    with pytest.raises(RuntimeError, match="encoder-training pass on this batch"):
+        policy.goal_prediction_loss({key: value[:3] for key, value in batch.observations.items()})
+    # a training call logs it and moves the head
+    before = [param.detach().clone() for param in head.parameters()]
+    model.train(gradient_steps=2, batch_size=8)
+    assert "train/goal_prediction_loss" in model.logger.name_to_value
+    assert all(not th.equal(old, new) for old, new in zip(before, head.parameters(), strict=True))
+    # saved with the policy's kwargs
+    model.save(tmp_path / "model.zip")
+    loaded = LeanSAC.load(tmp_path / "model.zip", env=ImageGoalEnv(), device="cpu")
+    assert loaded.policy.goal_prediction == 2.0 and loaded.policy.goal_prediction_trained
+    for old, new in zip(head.parameters(), loaded.policy.critic.goal_head.parameters(), strict=True):
+        assert th.equal(old, new)
+    # SB3's SAC would ignore the loss: refused when training starts
+    sb3 = make_sac("nature", goal_prediction=1.0)
+    with pytest.raises(ValueError, match="needs an algorithm that adds its loss"):
+        sb3.learn(30)
+
+
+def test_goal_prediction_teaches_the_position() -> None:
+    """With a large weight, a few hundred steps make the image features predict achieved_goal on new frames."""
+    model = make_sac("nature", algo=LeanSAC, goal_prediction=10.0)
+    model.learn(400)
+    env = ImageGoalEnv()
+    frames = [env.reset(seed=seed)[0] for seed in range(100, 160)]
+    observations = model.policy.obs_to_tensor({key: np.stack([frame[key] for frame in frames]) for key in frames[0]})[0]
+    model.policy.set_training_mode(False)
+    with th.no_grad():
+        image = model.policy.critic.extract_features(observations, model.policy.critic.features_extractor)[:, :256]
+        error = (model.policy.critic.goal_head(image) - observations["achieved_goal"]).norm(dim=1)
+    # the positions are uniform in [-1, 1]^2: predicting their mean would err by about 0.77 on average
+    assert error.mean() < 0.4, error.mean()
+
+
+def test_goal_prediction_bad_input() -> None:
+    """A negative weight, another features extractor, or no achieved_goal to predict: a clear error."""
+    with pytest.raises(ValueError, match="goal_prediction"):
+        make_sac("nature", goal_prediction=-1.0)
+    with pytest.raises(ValueError, match="reads PixelGoalExtractor's image features"):
+        SAC(
+            PixelGoalSACPolicy,
+            ImageGoalEnv(),
+            buffer_size=10,
+            policy_kwargs={"features_extractor_class": CombinedExtractor, "goal_prediction": 1.0},
+        )

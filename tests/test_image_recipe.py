@@ -16,6 +16,7 @@ from rl_zoo3.utils import StoreDict
 from benchmarks import image_recipe
 from sb3_pilot.experiments.challenges.stages import load_zoo_model
 from sb3_pilot.experiments.statistics import iqm
+from sb3_pilot.sac import LeanSAC
 
 TASK = "Pilot/ReacherImage-v0"
 #: A stand-in for ``python -m sb3_pilot.experiments.zoo train``: the zoo's evaluations.npz at each --eval-freq up to -n,
@@ -77,6 +78,14 @@ def test_variant_args_as_the_zoo_reads_them() -> None:
     parsed = parser.parse_args(image_recipe.variant_args(entry, image_recipe.parse_variant("hidden+goalnorm")))
     assert eval(parsed.hyperparams["normalize"]) == {"norm_obs_keys": ["achieved_goal", "desired_goal"], "norm_reward": False}
     assert parsed.hyperparams["vec_env_wrapper"] == "stable_baselines3.common.vec_env.VecTransposeImage"
+    # goalpred: the preset's policy kwargs plus the loss's weight, under the package's SAC
+    changes = image_recipe.parse_variant("goalpred+noshift")
+    assert changes.algo == "lean_sac"
+    parsed = parser.parse_args(image_recipe.variant_args(entry, changes))
+    assert parsed.hyperparams["policy_kwargs"] == {
+        "features_extractor_kwargs": {**preset_kwargs, "random_shift": 0},
+        "goal_prediction": image_recipe.GOAL_PREDICTION,
+    }
 
 
 def test_iqm_is_rliables() -> None:
@@ -178,11 +187,16 @@ def test_another_command_is_refused(tmp_path: Path, fake_zoo: Path) -> None:
         image_recipe.main(args)
 
 
-def test_goalnorm_run_trains_and_loads(tmp_path: Path) -> None:
-    """A real zoo run of the goalnorm variant: its VecNormalize (goals only, over transposed frames) saves and loads."""
-    image_recipe.main(recipe(tmp_path, "--variants", "hidden+goalnorm", "--seeds", "0"))
-    model_path = tmp_path / "hidden+goalnorm" / "seed_0" / "sac" / "Pilot-ReacherImage-v0_1" / "Pilot-ReacherImage-v0.zip"
-    model, vec_normalize = load_zoo_model(model_path, algo="sac")
+def test_goalnorm_goalpred_run_trains_and_loads(tmp_path: Path) -> None:
+    """
+    A real zoo run of goalnorm + goalpred: its VecNormalize (goals only, over transposed frames) saves and loads, and the
+    package's SAC trains the goal prediction.
+    """
+    image_recipe.main(recipe(tmp_path, "--variants", "hidden+goalnorm+goalpred", "--seeds", "0"))
+    run = tmp_path / "hidden+goalnorm+goalpred" / "seed_0" / "lean_sac" / "Pilot-ReacherImage-v0_1"
+    assert "goal_prediction_loss" in (run.parents[1] / "train.log").read_text()
+    model, vec_normalize = load_zoo_model(run / "Pilot-ReacherImage-v0.zip")
+    assert isinstance(model, LeanSAC) and model.policy.goal_prediction == image_recipe.GOAL_PREDICTION
     assert vec_normalize is not None and vec_normalize.norm_obs_keys == ["achieved_goal", "desired_goal"]
     env = gym.make(TASK, show_target=False)
     observation, _ = env.reset(seed=0)

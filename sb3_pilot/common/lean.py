@@ -137,6 +137,8 @@ class LeanSACSteps:
     device: th.device
     #: the gradient step captured as CUDA graphs (:mod:`sb3_pilot.common.cuda_graph`), where an algorithm opts in
     _cuda_graph_update: Any = None
+    #: weight of the policy's goal-prediction loss in the critic's loss (0: none; set by the algorithm)
+    _goal_prediction: float = 0.0
 
     def _use_lean_her(self) -> None:
         """Sample HER batches with :class:`~sb3_pilot.common.buffers.LeanHerReplayBuffer` where SB3's is asked for."""
@@ -168,7 +170,8 @@ class LeanSACSteps:
         self, observations: PyTorchObs, actions: th.Tensor, target_q_values: th.Tensor, losses: LossRecorder
     ) -> None:
         """
-        SAC's critic step: loss ``1/2 sum_i mean_batch (Q_i(s, a) - y)^2`` for the TD target ``y``, one optimizer step.
+        SAC's critic step: loss ``1/2 sum_i mean_batch (Q_i(s, a) - y)^2`` for the TD target ``y``, one optimizer step
+        (plus the policy's goal-prediction loss, weighted, where it has one: ``PixelGoalSACPolicy(goal_prediction=...)``).
 
         :param observations: observations ``s`` of the batch
         :param actions: the buffer's actions ``a``
@@ -178,6 +181,11 @@ class LeanSACSteps:
         current_q_values = q_values(self.critic, observations, actions)
         critic_loss = 0.5 * ((current_q_values - target_q_values) ** 2).mean(dim=(1, 2)).sum()
         losses.add("critic_loss", critic_loss)
+        if self._goal_prediction:
+            # Goal prediction loss (a pixel policy's auxiliary loss): mean ||g_hat(phi(s)) - achieved_goal||^2
+            goal_prediction_loss = self.policy.goal_prediction_loss(observations)
+            losses.add("goal_prediction_loss", goal_prediction_loss)
+            critic_loss = critic_loss + self._goal_prediction * goal_prediction_loss
         self.critic.optimizer.zero_grad()
         critic_loss.backward()
         self.critic.optimizer.step()

@@ -4,7 +4,7 @@ Features extractors (and the image policy) for the transfer targets, selectable 
 
 - :class:`PixelGoalExtractor` and :class:`PixelGoalSACPolicy`: pixel-only agents for the image tasks (the image and
   the desired goal, never the achieved goal), trained the paper's way, optionally with DrQ's random shifts
-  (:class:`RandomShift`);
+  (:class:`RandomShift`) and an auxiliary loss that predicts the achieved goal from the image (``goal_prediction``);
 - :class:`GoalRelativeExtractor`: translation- and heading-invariant features for a goal-conditioned controller
   (the zero-shot Ant-Maze controller), which then acts the same anywhere in a larger map.
 """
@@ -22,6 +22,8 @@ from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from stable_baselines3.common.type_aliases import PyTorchObs
 from stable_baselines3.sac.policies import Actor, SACPolicy
 from torch import nn
+
+from sb3_pilot.common.utils import check_number
 
 # ---------------------------------------- Pixel-only image agents
 # Pixel-only agents for the image tasks (``Pilot/FetchReachImage-v0``, ``Pilot/ReacherImage-v0``): a features
@@ -42,6 +44,8 @@ from torch import nn
 ENCODERS = ("nature", "paper")
 #: Keys of the Dict observation the extractor reads; ``achieved_goal`` is never read.
 IMAGE_KEY, GOAL_KEY = "observation", "desired_goal"
+#: The key the auxiliary goal prediction learns to predict (in training only: a target, never an input).
+ACHIEVED_KEY = "achieved_goal"
 
 
 def nature_cnn(n_channels: int) -> nn.Sequential:
@@ -194,11 +198,21 @@ class _EncoderTrainingCritic(ContinuousCritic):
     actions (which require a gradient) for the actor's loss. Features get a gradient in the first call only, so
     the actor's loss, which the actor's optimizer minimises, never reaches the encoder (and its backward pass skips
     it, as DrQ's ``detach`` does).
+
+    With a ``goal_head`` (:class:`PixelGoalSACPolicy`'s ``goal_prediction``), the image features of that first call
+    are kept as ``image_features`` for the auxiliary loss of the same gradient step.
     """
+
+    def __init__(self, *args: Any, **kwargs: Any):
+        super().__init__(*args, **kwargs)
+        self.goal_head: nn.Linear | None = None
+        self.image_features: th.Tensor | None = None
 
     def forward(self, obs: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, ...]:
         with th.set_grad_enabled(th.is_grad_enabled() and not actions.requires_grad):
             features = self.extract_features(obs, self.features_extractor)
+        if self.goal_head is not None and features.requires_grad:
+            self.image_features = features[:, : self.goal_head.in_features]
         qvalue_input = th.cat([features, actions], dim=1)
         return tuple(q_net(qvalue_input) for q_net in self.q_networks)
 
@@ -214,21 +228,51 @@ class PixelGoalSACPolicy(SACPolicy):
     copy included (its networks stay in evaluation mode): in ``train()`` the target values are computed from shifted
     next observations, as in DrQ.
 
+    With ``goal_prediction > 0``, the encoder also learns to predict the achieved goal ``g`` from the image: a linear
+    head ``g_hat`` on the image features ``phi(o)`` of the critic's pass, and the critic's loss gets
+    ``goal_prediction * mean ||g_hat(phi(o)) - g||^2`` (:meth:`goal_prediction_loss`; ``g`` as the agent's buffer holds
+    it, standardised where the goal entries are normalised). The goal is a training target only: the actor and the
+    critic still read the image and the desired goal alone. The pixel agent must locate its arm more finely than
+    the success radius (Reacher-Image: 0.02, under 3 pixels), which the critic's sparse-reward loss alone teaches
+    slowly. The loss is added by :class:`~sb3_pilot.sac.LeanSAC` (the zoo's ``lean_sac``); SB3's ``SAC`` would
+    ignore it, so training with it refuses to start.
+
     In an RL-Zoo YAML: ``policy: sb3_pilot.common.torch_layers.PixelGoalSACPolicy``. Same parameters as SB3's
     ``MultiInputPolicy`` for SAC, but ``features_extractor_class`` defaults to :class:`PixelGoalExtractor` and
     ``share_features_extractor`` must stay True (the sharing described above).
+
+    :param goal_prediction: weight of the auxiliary goal-prediction loss in the critic's loss (0: none)
     """
+
+    #: set by the algorithm that adds :meth:`goal_prediction_loss` to its critic's loss (:class:`~sb3_pilot.sac.LeanSAC`)
+    goal_prediction_trained: bool = False
 
     def __init__(
         self,
         *args: Any,
         features_extractor_class: type[BaseFeaturesExtractor] = PixelGoalExtractor,
         share_features_extractor: bool = True,
+        goal_prediction: float = 0.0,
         **kwargs: Any,
     ):
         if not share_features_extractor:
             raise ValueError("PixelGoalSACPolicy shares its encoder between actor and critic: use MultiInputPolicy not to.")
+        check_number("goal_prediction", goal_prediction, minimum=0.0)
+        if goal_prediction and not issubclass(features_extractor_class, PixelGoalExtractor):
+            raise ValueError(
+                f"goal_prediction reads PixelGoalExtractor's image features; features_extractor_class is "
+                f"{features_extractor_class.__name__}."
+            )
+        space = kwargs.get("observation_space", args[0] if args else None)
+        if goal_prediction and (not isinstance(space, spaces.Dict) or ACHIEVED_KEY not in space.spaces):
+            raise ValueError(f"goal_prediction predicts the observation's {ACHIEVED_KEY!r}, which it has not: {space}.")
+        self.goal_prediction = float(goal_prediction)
         super().__init__(*args, features_extractor_class=features_extractor_class, share_features_extractor=True, **kwargs)
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        data = super()._get_constructor_parameters()
+        data.update(goal_prediction=self.goal_prediction)
+        return data
 
     def _build(self, lr_schedule: Any) -> None:
         self.actor = self.make_actor()
@@ -246,6 +290,11 @@ class PixelGoalSACPolicy(SACPolicy):
 
     def set_training_mode(self, mode: bool) -> None:
         """SB3's switch of the actor's and the critic's mode, and of the target critic's augmentation (see above)."""
+        if mode and self.goal_prediction and not self.goal_prediction_trained:
+            raise ValueError(
+                f"PixelGoalSACPolicy(goal_prediction={self.goal_prediction}) needs an algorithm that adds its loss: "
+                "sb3_pilot.sac.LeanSAC (the zoo's lean_sac); SB3's SAC would train without it."
+            )
         super().set_training_mode(mode)
         for augmentation in self._target_augmentations:
             augmentation.train(mode)
@@ -256,7 +305,28 @@ class PixelGoalSACPolicy(SACPolicy):
 
     def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None) -> ContinuousCritic:
         critic_kwargs = self._update_features_extractor(self.critic_kwargs, features_extractor)
-        return _EncoderTrainingCritic(**critic_kwargs).to(self.device)
+        critic = _EncoderTrainingCritic(**critic_kwargs)
+        if self.goal_prediction:
+            observation_space = self.observation_space
+            assert isinstance(observation_space, spaces.Dict)
+            image_features = critic.features_extractor.features_dim - get_flattened_obs_dim(observation_space[GOAL_KEY])
+            critic.goal_head = nn.Linear(image_features, get_flattened_obs_dim(observation_space[ACHIEVED_KEY]))
+        return critic.to(self.device)
+
+    def goal_prediction_loss(self, observations: PyTorchObs) -> th.Tensor:
+        """
+        The auxiliary loss ``mean_batch ||g_hat(phi(o)) - g||^2`` of the critic's last encoder-training pass, which
+        must have been on these observations (the critic's loss of the same gradient step).
+
+        :param observations: the batch the critic was just called on (its ``achieved_goal`` is ``g``)
+        :return: the loss (a scalar with gradients for the encoder and the head)
+        """
+        features = self.critic.image_features
+        assert isinstance(observations, dict) and self.critic.goal_head is not None
+        goals = observations[ACHIEVED_KEY].flatten(start_dim=1)
+        if features is None or features.shape[0] != goals.shape[0]:
+            raise RuntimeError("goal_prediction_loss needs the critic's encoder-training pass on this batch first.")
+        return ((self.critic.goal_head(features) - goals) ** 2).sum(dim=1).mean()
 
 
 # ---------------------------------------- Goal-relative controller features

@@ -149,6 +149,10 @@ class LeanSAC(LeanSACSteps, SAC):
         self.policy_class = LEAN_POLICIES.get(self.policy_class, self.policy_class)
         self._use_lean_her()
         super()._setup_model()
+        # a pixel policy's auxiliary goal prediction (PixelGoalSACPolicy), added to the critic's loss
+        self._goal_prediction = getattr(self.policy, "goal_prediction", 0.0)
+        if self._goal_prediction:
+            self.policy.goal_prediction_trained = True
         self._cuda_graph_update = CudaGraphUpdate.for_model(self, self._optimizers()) if self.cuda_graphs else None
 
     def _optimizers(self) -> list[th.optim.Optimizer]:
