@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from rl_zoo3.utils import StoreDict
 
-from benchmarks import image_recipe
+from benchmarks import image_localisation, image_probe, image_recipe
 from sb3_pilot.experiments.challenges.stages import load_zoo_model
 from sb3_pilot.experiments.statistics import iqm
 from sb3_pilot.sac import LeanSAC
@@ -205,3 +205,19 @@ def test_goalnorm_goalpred_run_trains_and_loads(tmp_path: Path) -> None:
     assert not np.allclose(normalized["desired_goal"], observation["desired_goal"])
     action, _ = model.predict(normalized, deterministic=True)
     assert env.action_space.contains(action)
+
+
+def test_image_probe_and_localisation_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The probe's row on a real (tiny) zoo run of the lean SAC, and the supervised localisation's rows, as numbers."""
+    image_recipe.main(recipe(tmp_path, "--variants", "goalpred", "--seeds", "0"))
+    model_path = tmp_path / "goalpred" / "seed_0" / "lean_sac" / "Pilot-ReacherImage-v0_1" / "Pilot-ReacherImage-v0.zip"
+    capsys.readouterr()
+    image_probe.main([str(model_path), "--episodes", "3"])
+    row = capsys.readouterr().out.strip().splitlines()[-1].split("|")[2:-1]
+    frames, r2, error, untrained_r2, untrained_error, across_goals, across_frames = map(float, row)
+    assert frames == 150 and r2 <= 1 and untrained_r2 <= 1 and error > 0 and untrained_error > 0
+    assert across_goals >= 0 and across_frames > 0
+    image_localisation.main(["--steps", "2", "--episodes", "4", "--shifts", "0", "2"])
+    lines = capsys.readouterr().out.splitlines()
+    rows = [line.split("|")[1:-1] for line in lines if line.startswith("| ") and "---" not in line]
+    assert [int(row[0]) for row in rows[1:]] == [0, 2] and all(0 < float(row[2]) < 1 for row in rows[1:])
