@@ -11,6 +11,9 @@ Variants (``+`` combines them, e.g. ``hidden+stack3``):
   untouched), as the vector agents' entries are;
 - ``stack3``: the last 3 frames of the image entry stacked (``sb3_pilot.common.wrappers.ImageFrameStack``,
   ``n_frames=3``, after the preset's own ``env_wrapper``);
+- ``zoorl``: the RL settings under which the vector sources learn (RL-Zoo's FetchReach ones, as the challenges'
+  ``RL_ZOO_FETCH``): gamma 0.95, learning rate 1e-3, 1000 warm-up steps, one env with a gradient step per env step
+  (the preset: gamma 0.99, 3e-4, 4 envs and a gradient step per 2 env steps); minibatches and networks unchanged;
 - ``goalpred``: the encoder also trained to predict the achieved goal (``PixelGoalSACPolicy``'s
   ``goal_prediction=1.0``), which needs the package's SAC: ``--algo lean_sac`` (SB3's SAC's numbers otherwise).
 
@@ -67,6 +70,7 @@ import numpy as np
 import yaml
 from scipy.stats import trim_mean
 
+from sb3_pilot.experiments.challenges.definitions import RL_ZOO_FETCH
 from sb3_pilot.experiments.zoo import hyperparams_dir
 
 #: The preset every run reads (``--conf-file``, in the package's ``hyperparams/``).
@@ -123,6 +127,12 @@ def _goalnorm(changes: Changes) -> None:
     changes.hyperparams["vec_env_wrapper"] = "stable_baselines3.common.vec_env.VecTransposeImage"
 
 
+def _zoorl(changes: Changes) -> None:
+    settings = RL_ZOO_FETCH["*"]
+    changes.hyperparams.update(gamma=settings["gamma"], learning_rate=settings["learning_rate"])
+    changes.hyperparams.update(learning_starts=settings["learning_starts"], n_envs=1, train_freq=1, gradient_steps=1)
+
+
 def _goalpred(changes: Changes) -> None:
     # the auxiliary loss is added by the package's SAC (LeanSAC: SB3's SAC's numbers otherwise)
     changes.algo = "lean_sac"
@@ -136,6 +146,10 @@ VARIANTS: dict[str, tuple[Callable[[Changes], None], str]] = {
     "noshift": (_noshift, "no random shift (random_shift=0)"),
     "stack3": (_stack3, "3 frames of the image entry stacked (ImageFrameStack)"),
     "goalnorm": (_goalnorm, "the goal entries standardised by the zoo's VecNormalize (frames untouched)"),
+    "zoorl": (
+        _zoorl,
+        "the vector sources' RL settings: gamma 0.95, lr 1e-3, 1000 warm-up steps, 1 env, a gradient step per env step",
+    ),
     "goalpred": (_goalpred, f"the encoder also predicts the achieved goal (goal_prediction={GOAL_PREDICTION}, lean_sac)"),
 }
 

@@ -78,6 +78,16 @@ def test_variant_args_as_the_zoo_reads_them() -> None:
     parsed = parser.parse_args(image_recipe.variant_args(entry, image_recipe.parse_variant("hidden+goalnorm")))
     assert eval(parsed.hyperparams["normalize"]) == {"norm_obs_keys": ["achieved_goal", "desired_goal"], "norm_reward": False}
     assert parsed.hyperparams["vec_env_wrapper"] == "stable_baselines3.common.vec_env.VecTransposeImage"
+    # zoorl: the vector sources' RL settings as hyperparameters
+    parsed = parser.parse_args(image_recipe.variant_args(entry, image_recipe.parse_variant("zoorl")))
+    assert parsed.hyperparams == {
+        "gamma": 0.95,
+        "learning_rate": 1e-3,
+        "learning_starts": 1000,
+        "n_envs": 1,
+        "train_freq": 1,
+        "gradient_steps": 1,
+    }
     # goalpred: the preset's policy kwargs plus the loss's weight, under the package's SAC
     changes = image_recipe.parse_variant("goalpred+noshift")
     assert changes.algo == "lean_sac"
