@@ -23,8 +23,8 @@ OUT=${OUT:-gpu_image_recipe_out}
 mkdir -p "$OUT"
 exec > >(tee "$OUT/gpu_image_recipe.log") 2>&1
 TASK=${TASK:-Pilot/ReacherImage-v0}
-VARIANTS=${VARIANTS:-drawn hidden noshift stack3}
-SEEDS=${SEEDS:-0 1}
+VARIANTS=${VARIANTS:-hidden+goalnorm+zoorl+stack3 hidden+goalnorm+zoorl+stack3+goalpred}
+SEEDS=${SEEDS:-0 1 2 3}
 STEPS=${STEPS:-40000}
 EVAL_FREQ=${EVAL_FREQ:-2500}
 EVAL_EPISODES=${EVAL_EPISODES:-20}

@@ -42,8 +42,9 @@ finished runs are kept)::
         --variants drawn hidden noshift stack3 --seeds 0 1 --steps 50000 --root runs/image-recipe --jobs 1 &
 
 On a lent 16-core GPU machine (no package registry, 10 minutes a call): ``benchmarks/gpu_image_recipe.sh``, which
-installs the carried wheels (``benchmarks/gpu_wheels.sh``), renders with EGL, runs 4 variants x 2 seeds side by side
-with ``--device cuda --time-limit``, and returns the table and the runs' evaluations in ``$OUT``::
+installs the carried wheels (``benchmarks/gpu_wheels.sh``), renders with EGL, runs 2 variants x 4 seeds side by side
+(the sources' RL settings and a 3-frame stack, with and without the goal prediction) with ``--device cuda
+--time-limit``, and returns the table and the runs' evaluations in ``$OUT``::
 
     run(command="bash benchmarks/gpu_image_recipe.sh", carry=[".gpu_wheels"], timeout_s=600)
 
