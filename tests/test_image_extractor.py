@@ -5,6 +5,7 @@ RandomShift (DrQ's augmentation) acts in training only; the auxiliary goal predi
 
 from __future__ import annotations
 
+import copy
 from typing import Any
 
 import numpy as np
@@ -13,6 +14,7 @@ import torch as th
 from gymnasium import spaces
 from image_envs import SIZE, ImageGoalEnv
 from stable_baselines3 import SAC, HerReplayBuffer
+from stable_baselines3.common.logger import configure
 from stable_baselines3.common.preprocessing import preprocess_obs
 from stable_baselines3.common.torch_layers import CombinedExtractor
 
@@ -215,12 +217,43 @@ def test_random_shift_acts_in_train(algo: type[SAC], monkeypatch: pytest.MonkeyP
     target = id(model.policy.critic_target.features_extractor.augmentation)
     # SB3: actor(s), actor(s'), target(s'), critic(s, a), critic(s, pi(s)), each its own draw, all in training mode
     assert set(calls) == {(shared, True), (target, True)}
-    assert calls.count((shared, True)) >= 3 and calls.count((target, True)) >= 1  # s and s' for the actor, s for Q
-    if algo is SAC:
-        assert len(calls) == 5
+    # SB3: s for the actor, the critic and the actor's loss, s' for the actor and the target; lean: s once (encode)
+    expected = {SAC: (4, 1), LeanSAC: (2, 1)}[algo]
+    assert (calls.count((shared, True)), calls.count((target, True))) == expected
     calls.clear()
     model.predict(ImageGoalEnv().reset(seed=0)[0])
     assert calls == [(shared, False)]
+
+
+def test_lean_pixel_step_encodes_observations_once() -> None:
+    """
+    LeanSAC encodes s once per step (DrQ-v2): from the same weights, batch and draws as SB3's SAC, the same critic
+    and temperature step (the encoder included); the actor's loss reads the encoder from before the critic's update.
+    """
+    sac = make_sac("nature")
+    sac.learn(40)
+    lean = make_sac("nature", algo=LeanSAC)
+    lean.set_parameters(copy.deepcopy(sac.get_parameters()))
+    with th.no_grad():
+        lean.log_ent_coef.copy_(sac.log_ent_coef)
+    lean.replay_buffer, lean._current_progress_remaining = sac.replay_buffer, sac._current_progress_remaining
+    lean.set_logger(configure(None, []))
+    batch = sac.replay_buffer.sample(8)
+    passes = []
+    for model in (sac, lean):
+        model.replay_buffer.sample = lambda *args, **kwargs: batch
+        extractor = model.policy.critic.features_extractor
+        handle = extractor.register_forward_hook(lambda module, inputs, output: passes.append(model))
+        th.manual_seed(1)
+        model.train(gradient_steps=1, batch_size=8)
+        handle.remove()
+    # the shared encoder (the target's copy aside): SB3 on s three times and s' once; lean on s and s' once each
+    assert (passes.count(sac), passes.count(lean)) == (4, 2)
+    for name, value in lean.policy.critic.state_dict().items():
+        th.testing.assert_close(value, sac.policy.critic.state_dict()[name], rtol=1e-4, atol=1e-6, msg=name)
+    for key in ("train/critic_loss", "train/ent_coef_loss"):
+        assert lean.logger.name_to_value[key] == pytest.approx(sac.logger.name_to_value[key], rel=1e-4), key
+    assert lean.logger.name_to_value["train/actor_loss"] != sac.logger.name_to_value["train/actor_loss"]
 
 
 def test_random_shift_bad_input() -> None:

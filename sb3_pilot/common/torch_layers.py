@@ -11,6 +11,7 @@ Features extractors (and the image policy) for the transfer targets, selectable 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
@@ -115,9 +116,11 @@ class PixelGoalExtractor(BaseFeaturesExtractor):
       and LayerNorm.
 
     With ``random_shift > 0``, the image is first shifted at random by up to that many pixels (:class:`RandomShift`,
-    DrQ's augmentation) in training mode only, a new draw at every call: the critic, the actor and (with
-    :class:`PixelGoalSACPolicy`) the target critic each see their own shifts of the observations and of the next
-    observations; ``predict`` and evaluations see the frame as it is.
+    DrQ's augmentation) in training mode only, a new draw at every call: in SB3's ``SAC`` the critic, the actor and
+    (with :class:`PixelGoalSACPolicy`) the target critic each see their own shifts of the observations and of the next
+    observations; :class:`~sb3_pilot.sac.LeanSAC` encodes the observations once per gradient step, so its critic and
+    actor see the same shift of them (:meth:`PixelGoalSACPolicy.encode`); ``predict`` and evaluations see the frame
+    as it is.
 
     From a YAML: ``policy_kwargs: "dict(features_extractor_kwargs=dict(encoder='paper', random_shift=4))"``.
 
@@ -182,10 +185,29 @@ class PixelGoalExtractor(BaseFeaturesExtractor):
         return th.cat([features, th.flatten(observations[GOAL_KEY], start_dim=1)], dim=1)
 
 
+@dataclass(frozen=True)
+class EncodedObservations:
+    """
+    A batch of observations already through the shared encoder: ``phi(s)`` with its graph, as
+    :meth:`PixelGoalSACPolicy.encode` returns it. The actor and the critic of :class:`PixelGoalSACPolicy` read it in
+    place of the observations (the actor, and the critic at the actor's actions, without its gradient).
+
+    :param observations: the batch ``s`` itself (its ``achieved_goal`` is the goal prediction's target)
+    :param features: the features extractor's output (image features and desired goal), ``(batch, features_dim)``
+    """
+
+    observations: PyTorchObs
+    features: th.Tensor
+
+
 class _DetachedFeaturesActor(Actor):
     """SAC actor whose (shared) features extractor gets no gradient: its features are computed without one."""
 
-    def extract_features(self, obs: PyTorchObs, features_extractor: BaseFeaturesExtractor) -> th.Tensor:  # type: ignore[override]
+    def extract_features(  # type: ignore[override]
+        self, obs: PyTorchObs | EncodedObservations, features_extractor: BaseFeaturesExtractor
+    ) -> th.Tensor:
+        if isinstance(obs, EncodedObservations):
+            return obs.features.detach()
         with th.no_grad():
             return super().extract_features(obs, features_extractor)
 
@@ -199,6 +221,9 @@ class _EncoderTrainingCritic(ContinuousCritic):
     the actor's loss, which the actor's optimizer minimises, never reaches the encoder (and its backward pass skips
     it, as DrQ's ``detach`` does).
 
+    Given :class:`EncodedObservations` (features computed once, :meth:`PixelGoalSACPolicy.encode`), it reads them
+    with their gradient in the same cases, detached otherwise.
+
     With a ``goal_head`` (:class:`PixelGoalSACPolicy`'s ``goal_prediction``), the image features of that first call
     are kept as ``image_features`` for the auxiliary loss of the same gradient step.
     """
@@ -208,9 +233,13 @@ class _EncoderTrainingCritic(ContinuousCritic):
         self.goal_head: nn.Linear | None = None
         self.image_features: th.Tensor | None = None
 
-    def forward(self, obs: th.Tensor, actions: th.Tensor) -> tuple[th.Tensor, ...]:
-        with th.set_grad_enabled(th.is_grad_enabled() and not actions.requires_grad):
-            features = self.extract_features(obs, self.features_extractor)
+    def forward(self, obs: PyTorchObs | EncodedObservations, actions: th.Tensor) -> tuple[th.Tensor, ...]:
+        trains_encoder = th.is_grad_enabled() and not actions.requires_grad
+        if isinstance(obs, EncodedObservations):
+            features = obs.features if trains_encoder else obs.features.detach()
+        else:
+            with th.set_grad_enabled(trains_encoder):
+                features = self.extract_features(obs, self.features_extractor)
         if self.goal_head is not None and features.requires_grad:
             self.image_features = features[:, : self.goal_head.in_features]
         qvalue_input = th.cat([features, actions], dim=1)
@@ -313,14 +342,28 @@ class PixelGoalSACPolicy(SACPolicy):
             critic.goal_head = nn.Linear(image_features, get_flattened_obs_dim(observation_space[ACHIEVED_KEY]))
         return critic.to(self.device)
 
-    def goal_prediction_loss(self, observations: PyTorchObs) -> th.Tensor:
+    def encode(self, observations: PyTorchObs) -> EncodedObservations:
+        """
+        ``phi(s)``, once for a gradient step (DrQ-v2's order): the critic's encoder on the observations (shifted in
+        training, with the gradient the critic's loss trains it by), which the actor, the critic and the actor's loss
+        then read instead of encoding the batch three times. :class:`~sb3_pilot.sac.LeanSAC` calls it; the next
+        observations are encoded as before (by the encoder for the actor, by the target's copy for the target).
+
+        :param observations: the batch's observations ``s``
+        :return: their features, for the actor's and the critic's calls of this gradient step
+        """
+        return EncodedObservations(observations, self.critic.extract_features(observations, self.critic.features_extractor))
+
+    def goal_prediction_loss(self, observations: PyTorchObs | EncodedObservations) -> th.Tensor:
         """
         The auxiliary loss ``mean_batch ||g_hat(phi(o)) - g||^2`` of the critic's last encoder-training pass, which
         must have been on these observations (the critic's loss of the same gradient step).
 
-        :param observations: the batch the critic was just called on (its ``achieved_goal`` is ``g``)
+        :param observations: the batch the critic was just called on (its ``achieved_goal`` is ``g``), or its encoding
         :return: the loss (a scalar with gradients for the encoder and the head)
         """
+        if isinstance(observations, EncodedObservations):
+            observations = observations.observations
         features = self.critic.image_features
         assert isinstance(observations, dict) and self.critic.goal_head is not None
         goals = observations[ACHIEVED_KEY].flatten(start_dim=1)

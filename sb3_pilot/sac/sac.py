@@ -13,6 +13,7 @@ from stable_baselines3.sac import policies as sac_policies
 from sb3_pilot.common.cuda_graph import CudaGraphUpdate
 from sb3_pilot.common.distributions import reparameterised_log_prob
 from sb3_pilot.common.lean import LeanSACSteps, LossRecorder, check_replay_sizes
+from sb3_pilot.common.torch_layers import EncodedObservations, PixelGoalSACPolicy
 from sb3_pilot.sac.policies import CnnPolicy, LeanSACPolicy, MlpPolicy, MultiInputPolicy
 
 #: SB3's SAC policy classes and their lean twins
@@ -36,7 +37,10 @@ class LeanSAC(LeanSACSteps, SAC):
     SB3's ``HerReplayBuffer`` is replaced by :class:`~sb3_pilot.common.buffers.LeanHerReplayBuffer` (same samples),
     and SB3's own SAC policy classes by their lean twins (:mod:`sb3_pilot.sac.policies`), so models saved by
     SB3's ``SAC`` load into it (their twin critics are stacked on load). Other ``SACPolicy`` subclasses (whose critic
-    is not an ensemble) work too, with the other cuts.
+    is not an ensemble) work too, with the other cuts. With :class:`~sb3_pilot.common.PixelGoalSACPolicy` the batch's
+    observations go through the shared encoder once per gradient step, as in DrQ-v2 (its ``encode``; SB3's ``SAC``
+    encodes them three times): the actor and the actor's loss read the critic's features, detached, from before the
+    critic's update; 3 encoder passes a step instead of 5.
 
     :param policy: ``"MlpPolicy"``, ``"CnnPolicy"``, ``"MultiInputPolicy"`` or a ``SACPolicy`` class
     :param env: the environment to learn from (a Gymnasium ID, an env or a VecEnv)
@@ -202,8 +206,12 @@ class LeanSAC(LeanSACSteps, SAC):
         """
         if self.use_sde:  # a new noise matrix per step (gSDE is never captured)
             self.actor.reset_noise()
+        observations: PyTorchObs | EncodedObservations = replay_data.observations
+        if isinstance(self.policy, PixelGoalSACPolicy):
+            # phi(s) once (DrQ-v2): trained by the critic's loss below, read detached by the actor and its loss
+            observations = self.policy.encode(observations)
         # Action by the current actor for the sampled states
-        actions_pi, log_prob = self.action_log_prob(replay_data.observations)
+        actions_pi, log_prob = self.action_log_prob(observations)
         log_prob = log_prob.reshape(-1, 1)
 
         # Entropy coefficient (temperature) loss
@@ -213,10 +221,10 @@ class LeanSAC(LeanSACSteps, SAC):
         with th.no_grad():
             next_actions, next_log_prob = self.action_log_prob(replay_data.next_observations)
         target_q_values = self._target_q_values(replay_data, next_actions, next_log_prob, ent_coef)
-        self._critic_step(replay_data.observations, replay_data.actions, target_q_values, losses)
+        self._critic_step(observations, replay_data.actions, target_q_values, losses)
 
         # Actor loss: E[alpha log pi(a | s) - min_i Q_i(s, a)], gradients for the actor's parameters only
-        actor_loss = self._actor_loss(replay_data.observations, actions_pi, log_prob, ent_coef, losses)
+        actor_loss = self._actor_loss(observations, actions_pi, log_prob, ent_coef, losses)
         self.actor.optimizer.zero_grad()
         actor_loss.backward(inputs=self._actor_parameters)
         self.actor.optimizer.step()
