@@ -347,6 +347,9 @@ def _start(run: Run, device: str | None) -> subprocess.Popen:
             stderr=subprocess.STDOUT,
             env=env,
             start_new_session=True,
+            # SIGINT as Python's default (KeyboardInterrupt: the zoo saves), even where this runner inherited it
+            # ignored (started with `nohup ... &` from a script), which the child would inherit in turn
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
         )
 
 

@@ -243,7 +243,7 @@ def test_lean_pixel_step_encodes_observations_once() -> None:
     for model in (sac, lean):
         model.replay_buffer.sample = lambda *args, **kwargs: batch
         extractor = model.policy.critic.features_extractor
-        handle = extractor.register_forward_hook(lambda module, inputs, output: passes.append(model))
+        handle = extractor.register_forward_hook(lambda module, inputs, output, model=model: passes.append(model))
         th.manual_seed(1)
         model.train(gradient_steps=1, batch_size=8)
         handle.remove()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import shlex
+import signal
 import textwrap
 from pathlib import Path
 
@@ -44,7 +45,7 @@ FAKE_ZOO = textwrap.dedent(
             np.savez(folder / "evaluations", timesteps=done, successes=successes, final_distances=final_distances)
             time.sleep(float(os.environ.get("FAKE_ZOO_SLEEP", "0")))
     except KeyboardInterrupt:
-        pass
+        Path("saved").touch()  # as the zoo saves its model on Ctrl-C
     """
 )
 
@@ -133,12 +134,21 @@ def test_runs_resume_and_table(tmp_path: Path, fake_zoo: Path) -> None:
     assert image_recipe.is_finished(unfinished, 400)
 
 
-def test_time_limit_keeps_evaluations(tmp_path: Path, fake_zoo: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("sigint_ignored", [False, True])
+def test_time_limit_keeps_evaluations(
+    tmp_path: Path, fake_zoo: Path, monkeypatch: pytest.MonkeyPatch, sigint_ignored: bool
+) -> None:
+    """The runs still going are interrupted and save, even under a runner started with SIGINT ignored (nohup &)."""
     monkeypatch.setenv("FAKE_ZOO_SLEEP", "60")
     root = tmp_path / "runs"
-    summary = image_recipe.main(
-        recipe(root, "--variants", "noshift", "--seeds", "0", "1", "2", "--jobs", "2", "--time-limit", "3")
-    )
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN if sigint_ignored else signal.default_int_handler)
+    try:
+        summary = image_recipe.main(
+            recipe(root, "--variants", "noshift", "--seeds", "0", "1", "2", "--jobs", "2", "--time-limit", "3")
+        )
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert all((root / "noshift" / f"seed_{seed}" / "saved").exists() for seed in (0, 1))
     runs = summary["variants"]["noshift"]["runs"]
     assert [run["seed"] for run in runs] == [0, 1]  # seed 2 never started
     assert all(run["timesteps"] == [200] and not run["finished"] for run in runs)
