@@ -15,7 +15,11 @@ Variants (``+`` combines them, e.g. ``hidden+stack3``):
   ``RL_ZOO_FETCH``): gamma 0.95, learning rate 1e-3, 1000 warm-up steps, one env with a gradient step per env step
   (the preset: gamma 0.99, 3e-4, 4 envs and a gradient step per 2 env steps); minibatches and networks unchanged;
 - ``goalpred``: the encoder also trained to predict the achieved goal (``PixelGoalSACPolicy``'s
-  ``goal_prediction=1.0``), which needs the package's SAC: ``--algo lean_sac`` (SB3's SAC's numbers otherwise).
+  ``goal_prediction=1.0``), which needs the package's SAC: ``--algo lean_sac`` (SB3's SAC's numbers otherwise);
+- ``fast``: the GPU fast path, under the package's SAC: its gradient step captured as CUDA graphs
+  (``cuda_graphs=True``) and the HER buffer's frames, relabelling and rewards on the model's device (the preset's
+  ``replay_buffer_kwargs`` with ``storage="device"``). It changes how fast a run goes, not what it learns, but for
+  the random streams; off CUDA the step stays eager (with a warning) and the buffer's tensors stay on the CPU.
 
 Each run is ``python -m sb3_pilot.experiments.zoo train --algo sac --env TASK --conf-file image/sac.yml --seed S
 -n STEPS --eval-freq F --eval-episodes E --num-threads 1 -f . [--device D] [the variant's --env-kwargs / -params]``,
@@ -42,9 +46,10 @@ finished runs are kept)::
         --variants drawn hidden noshift stack3 --seeds 0 1 --steps 50000 --root runs/image-recipe --jobs 1 &
 
 On a lent 16-core GPU machine (no package registry, 10 minutes a call): ``benchmarks/gpu_image_recipe.sh``, which
-installs the carried wheels (``benchmarks/gpu_wheels.sh``), renders with EGL, runs 2 variants x 4 seeds side by side
-(the sources' RL settings and a 3-frame stack, with and without the goal prediction) with ``--device cuda
---time-limit``, and returns the table and the runs' evaluations in ``$OUT``::
+installs the carried wheels (``benchmarks/gpu_wheels.sh``), renders with EGL, runs 2 variants x 2 seeds side by side
+(the sources' RL settings and a 3-frame stack, with and without the goal prediction; on the fast path where a short
+run of it finishes there) with ``--device cuda --time-limit``, and returns the table and the runs' evaluations in
+``$OUT``::
 
     run(command="bash benchmarks/gpu_image_recipe.sh", carry=[".gpu_wheels"], timeout_s=600)
 
@@ -96,8 +101,8 @@ IQM_CUT = 0.25
 @dataclass
 class Changes:
     """
-    What a variant changes in the preset: the zoo algorithm, the task's kwargs, the policy's and the extractor's
-    kwargs, wrappers added after the preset's and other hyperparameters (set as they are).
+    What a variant changes in the preset: the zoo algorithm, the task's kwargs, the policy's, the extractor's and the
+    replay buffer's kwargs, wrappers added after the preset's and other hyperparameters (set as they are).
     """
 
     algo: str = "sac"
@@ -105,6 +110,7 @@ class Changes:
     policy_kwargs: dict[str, Any] = field(default_factory=dict)
     extractor_kwargs: dict[str, Any] = field(default_factory=dict)
     wrappers: list[dict[str, Any]] = field(default_factory=list)
+    replay_buffer_kwargs: dict[str, Any] = field(default_factory=dict)
     hyperparams: dict[str, Any] = field(default_factory=dict)
 
 
@@ -140,6 +146,13 @@ def _goalpred(changes: Changes) -> None:
     changes.policy_kwargs["goal_prediction"] = GOAL_PREDICTION
 
 
+def _fast(changes: Changes) -> None:
+    # LeanSAC's fast path: CUDA graphs and the device-resident HER buffer (eager, on CPU tensors, off CUDA)
+    changes.algo = "lean_sac"
+    changes.hyperparams["cuda_graphs"] = True
+    changes.replay_buffer_kwargs["storage"] = "device"
+
+
 #: The variants, each with what it changes in the preset and its description.
 VARIANTS: dict[str, tuple[Callable[[Changes], None], str]] = {
     "drawn": (lambda changes: None, "the preset: target drawn, random_shift=4"),
@@ -152,6 +165,7 @@ VARIANTS: dict[str, tuple[Callable[[Changes], None], str]] = {
         "the vector sources' RL settings: gamma 0.95, lr 1e-3, 1000 warm-up steps, 1 env, a gradient step per env step",
     ),
     "goalpred": (_goalpred, f"the encoder also predicts the achieved goal (goal_prediction={GOAL_PREDICTION}, lean_sac)"),
+    "fast": (_fast, "the GPU fast path: CUDA graphs and the HER buffer on the device (lean_sac)"),
 }
 
 
@@ -217,6 +231,10 @@ def variant_args(entry: dict[str, Any], changes: Changes) -> list[str]:
             extractor_kwargs = {**policy_kwargs.get("features_extractor_kwargs", {}), **changes.extractor_kwargs}
             policy_kwargs["features_extractor_kwargs"] = extractor_kwargs
         params.append(f"policy_kwargs:{literal(policy_kwargs)}")
+    if changes.replay_buffer_kwargs:
+        buffer_kwargs = entry.get("replay_buffer_kwargs", {})
+        buffer_kwargs = dict(eval(buffer_kwargs) if isinstance(buffer_kwargs, str) else buffer_kwargs)  # as the zoo reads it
+        params.append(f"replay_buffer_kwargs:{literal({**buffer_kwargs, **changes.replay_buffer_kwargs})}")
     if changes.wrappers:
         wrappers = entry.get("env_wrapper") or []
         wrappers = [wrappers] if isinstance(wrappers, (str, dict)) else list(wrappers)

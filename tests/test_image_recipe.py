@@ -12,6 +12,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+import yaml
 from rl_zoo3.utils import StoreDict
 
 from benchmarks import image_localisation, image_probe, image_recipe
@@ -96,6 +97,14 @@ def test_variant_args_as_the_zoo_reads_them() -> None:
     assert parsed.hyperparams["policy_kwargs"] == {
         "features_extractor_kwargs": {**preset_kwargs, "random_shift": 0},
         "goal_prediction": image_recipe.GOAL_PREDICTION,
+    }
+    # fast: the preset's HER settings with the buffer on the device, CUDA graphs, the package's SAC
+    changes = image_recipe.parse_variant("fast")
+    assert changes.algo == "lean_sac"
+    parsed = parser.parse_args(image_recipe.variant_args(entry, changes))
+    assert parsed.hyperparams == {
+        "replay_buffer_kwargs": {**eval(entry["replay_buffer_kwargs"]), "storage": "device"},
+        "cuda_graphs": True,
     }
 
 
@@ -207,14 +216,17 @@ def test_another_command_is_refused(tmp_path: Path, fake_zoo: Path) -> None:
         image_recipe.main(args)
 
 
-def test_goalnorm_goalpred_run_trains_and_loads(tmp_path: Path) -> None:
+def test_goalnorm_goalpred_fast_run_trains_and_loads(tmp_path: Path) -> None:
     """
-    A real zoo run of goalnorm + goalpred: its VecNormalize (goals only, over transposed frames) saves and loads, and the
-    package's SAC trains the goal prediction.
+    A real zoo run of goalnorm + goalpred + fast: its VecNormalize (goals only, over transposed frames) saves and loads,
+    the package's SAC trains the goal prediction, from the device-resident buffer (on CPU tensors here, the step eager).
     """
-    image_recipe.main(recipe(tmp_path, "--variants", "hidden+goalnorm+goalpred", "--seeds", "0"))
-    run = tmp_path / "hidden+goalnorm+goalpred" / "seed_0" / "lean_sac" / "Pilot-ReacherImage-v0_1"
-    assert "goal_prediction_loss" in (run.parents[1] / "train.log").read_text()
+    image_recipe.main(recipe(tmp_path, "--variants", "hidden+goalnorm+goalpred+fast", "--seeds", "0"))
+    run = tmp_path / "hidden+goalnorm+goalpred+fast" / "seed_0" / "lean_sac" / "Pilot-ReacherImage-v0_1"
+    log = (run.parents[1] / "train.log").read_text()
+    assert "goal_prediction_loss" in log and "the eager gradient step is used" in log
+    config = yaml.unsafe_load((run / "Pilot-ReacherImage-v0" / "config.yml").read_text())
+    assert dict(config)["cuda_graphs"] and dict(config)["replay_buffer_kwargs"]["storage"] == "device"
     model, vec_normalize = load_zoo_model(run / "Pilot-ReacherImage-v0.zip")
     assert isinstance(model, LeanSAC) and model.policy.goal_prediction == image_recipe.GOAL_PREDICTION
     assert vec_normalize is not None and vec_normalize.norm_obs_keys == ["achieved_goal", "desired_goal"]
