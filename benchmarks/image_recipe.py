@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import shlex
 import shutil
@@ -264,12 +265,13 @@ def plan_runs(args: argparse.Namespace) -> list[Run]:
     :raises ValueError: naming the bad input
     """
     entry = preset_entry(args.task)
-    n_envs = int(entry.get("n_envs", 1))
     if args.steps < 1 or args.eval_freq < 1 or args.eval_episodes < 1:
         raise ValueError("--steps, --eval-freq and --eval-episodes must be positive.")
+    # the envs of each variant (zoorl sets one), whose vector steps the zoo's evaluations count
+    n_envs = math.lcm(*(int(parse_variant(name).hyperparams.get("n_envs", entry.get("n_envs", 1))) for name in args.variants))
     if args.eval_freq % n_envs or args.steps % args.eval_freq:
         raise ValueError(
-            f"--eval-freq ({args.eval_freq}) must be a multiple of the preset's n_envs ({n_envs}) and --steps "
+            f"--eval-freq ({args.eval_freq}) must be a multiple of the variants' n_envs ({n_envs}) and --steps "
             f"({args.steps}) a multiple of --eval-freq, so that the last evaluation is at --steps."
         )
     if len(set(args.seeds)) != len(args.seeds) or min(args.seeds) < 0:

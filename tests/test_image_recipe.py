@@ -192,7 +192,8 @@ def test_table_from_evaluation_files(tmp_path: Path) -> None:
         (["--variants", "drawn", "blurred"], "Unknown variant part(s) ['blurred']"),
         (["--variants", "drawn+hidden"], "combines 'drawn'"),
         (["--task", "Pilot/Reacher-v0"], "no entry in hyperparams/image/sac.yml"),
-        (["--eval-freq", "150"], "multiple of the preset's n_envs"),
+        (["--eval-freq", "150"], "multiple of the variants' n_envs (4)"),
+        (["--variants", "zoorl", "hidden", "--eval-freq", "50"], "multiple of the variants' n_envs (4)"),
         (["--eval-freq", "120"], "a multiple of --eval-freq"),
         (["--seeds", "0", "0"], "distinct"),
         (["--jobs", "0"], "--jobs"),
@@ -204,6 +205,13 @@ def test_bad_input(tmp_path: Path, fake_zoo: Path, args: list[str], message: str
         image_recipe.main([*recipe(root), *args])
     assert message in str(error.value)
     assert not root.exists()  # nothing started
+
+
+def test_eval_freq_counts_each_variants_envs(tmp_path: Path) -> None:
+    """zoorl runs one env: its evaluations may fall between the preset's 4-env vector steps."""
+    parser_args = image_recipe.parser().parse_args(recipe(tmp_path, "--variants", "zoorl", "--eval-freq", "50"))
+    runs = image_recipe.plan_runs(parser_args)
+    assert {run.args[run.args.index("--eval-freq") + 1] for run in runs} == {"50"}
 
 
 def test_another_command_is_refused(tmp_path: Path, fake_zoo: Path) -> None:
