@@ -218,6 +218,12 @@ def literal(value: Any) -> str:
     return json.dumps(value) if isinstance(value, str) else repr(value)
 
 
+def entry_kwargs(entry: dict[str, Any], key: str) -> dict[str, Any]:
+    """A preset entry's kwargs (``policy_kwargs``, ``replay_buffer_kwargs``) as the zoo reads them: a string evaluated."""
+    value = entry.get(key, {})
+    return dict(eval(value) if isinstance(value, str) else value)
+
+
 def variant_args(entry: dict[str, Any], changes: Changes) -> list[str]:
     """The zoo arguments (``--env-kwargs``, ``-params``) that make the preset ``entry`` the variant of ``changes``."""
     args: list[str] = []
@@ -225,17 +231,15 @@ def variant_args(entry: dict[str, Any], changes: Changes) -> list[str]:
         args += ["--env-kwargs", *(f"{key}:{literal(value)}" for key, value in changes.env_kwargs.items())]
     params = []
     if changes.extractor_kwargs or changes.policy_kwargs:
-        policy_kwargs = entry.get("policy_kwargs", {})
-        policy_kwargs = dict(eval(policy_kwargs) if isinstance(policy_kwargs, str) else policy_kwargs)  # as the zoo reads it
+        policy_kwargs = entry_kwargs(entry, "policy_kwargs")
         policy_kwargs.update(changes.policy_kwargs)
         if changes.extractor_kwargs:
             extractor_kwargs = {**policy_kwargs.get("features_extractor_kwargs", {}), **changes.extractor_kwargs}
             policy_kwargs["features_extractor_kwargs"] = extractor_kwargs
         params.append(f"policy_kwargs:{literal(policy_kwargs)}")
     if changes.replay_buffer_kwargs:
-        buffer_kwargs = entry.get("replay_buffer_kwargs", {})
-        buffer_kwargs = dict(eval(buffer_kwargs) if isinstance(buffer_kwargs, str) else buffer_kwargs)  # as the zoo reads it
-        params.append(f"replay_buffer_kwargs:{literal({**buffer_kwargs, **changes.replay_buffer_kwargs})}")
+        buffer_kwargs = {**entry_kwargs(entry, "replay_buffer_kwargs"), **changes.replay_buffer_kwargs}
+        params.append(f"replay_buffer_kwargs:{literal(buffer_kwargs)}")
     if changes.wrappers:
         wrappers = entry.get("env_wrapper") or []
         wrappers = [wrappers] if isinstance(wrappers, (str, dict)) else list(wrappers)
