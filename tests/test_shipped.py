@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import gymnasium as gym
 import numpy as np
@@ -17,8 +18,14 @@ from sb3_pilot.envs import register_envs
 from sb3_pilot.experiments.ant_controller import load_controller
 from sb3_pilot.experiments.challenges import REUSE_SHIPPED, Shipped
 from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
-from sb3_pilot.experiments.challenges.definitions import FETCH_PUSH_SOURCE, FETCH_REACH_SOURCE, SOURCES_DIR
+from sb3_pilot.experiments.challenges.definitions import (
+    FETCH_PUSH_SOURCE,
+    FETCH_REACH_SOURCE,
+    SOURCES_DIR,
+    UMAZE_SHIPPED_DIR,
+)
 from sb3_pilot.experiments.challenges.stages import config_hash, load_zoo_model, vecnormalize_path
+from sb3_pilot.experiments.zoo import register
 
 register_envs()
 SHIPPED_DIR = Path(__file__).resolve().parent.parent / "zoo_runs" / "zero-shot-ant-maze" / "controller"
@@ -31,7 +38,7 @@ def test_reuse_shipped_names_shipped_files():
     for challenge in REUSE_SHIPPED.values():
         shipped = [stage.path for stage in challenge.stages if isinstance(stage, Shipped)]
         assert shipped and all(path.is_file() for path in shipped)
-        assert all(SHIPPED_DIR in path.parents or SOURCES_DIR in path.parents for path in shipped)
+        assert all({SHIPPED_DIR, SOURCES_DIR, UMAZE_SHIPPED_DIR} & set(path.parents) for path in shipped)
 
 
 def test_shipped_hash_covers_vecnormalize(tmp_path: Path):
@@ -65,6 +72,31 @@ def test_shipped_files_guide_the_ant(controller: Path, planner: Path):
         observation, _, terminated, truncated, info = env.step(action)
     assert truncated and not terminated and env.action_space.contains(action.astype(np.float32))
     assert np.linalg.norm(info["landmark"] - observation["achieved_goal"]) < 4.0  # a landmark near the Ant
+    env.close()
+
+
+def test_shipped_umaze_models_guide_the_ant():
+    """``pointmaze-to-antmaze --reuse-shipped``'s files: the SAC + HER teacher's planner, mapped to AntMaze's goals,
+    guides the shipped open-arena controller on gymnasium-robotics' own U-maze from its far start."""
+    register()  # gymnasium-robotics' tasks, as the challenge's stages register them
+    challenge = REUSE_SHIPPED["pointmaze-to-antmaze"]
+    shipped = {stage.name: stage.path for stage in challenge.stages if isinstance(stage, Shipped)}
+    assert set(shipped) == {"distill", "chosen"}
+    planner = GoalPlanner.load(shipped["distill"])
+    assert planner.source_task == "PointMaze_UMaze-v3" and planner.metadata["teacher_algorithm"] == "SAC"
+    (guided,) = [stage for stage in challenge.stages if getattr(stage, "planner", None) == "distill"]
+    env = guided.make_env(ctx=SimpleNamespace(steps={guided.name: 20}, outputs=shipped))
+    model, vec_normalize = load_zoo_model(shipped["chosen"], algo="sac")
+    assert vec_normalize is None  # the controller's inputs are raw: its extractor makes them goal-relative
+    observation, _ = env.reset(seed=0)
+    first = observation["desired_goal"].copy()
+    for _ in range(20):
+        action, _ = model.predict(observation, deterministic=True)
+        observation, _, terminated, truncated, info = env.step(action)
+    assert truncated and not terminated
+    real_goal = info["real_desired_goal"]
+    assert np.linalg.norm(real_goal - observation["achieved_goal"]) > 4.0  # the far goal, round the U
+    assert np.linalg.norm(first - observation["achieved_goal"]) < 4.0  # a landmark near the Ant instead
     env.close()
 
 

@@ -587,6 +587,9 @@ SOURCES_DIR = REPO_DIR / "zoo_runs" / "sources" / "shipped"
 FETCH_REACH_SOURCE = SOURCES_DIR / "fetchreach_seed0" / "udpo" / "Pilot-FetchReach-v0_1" / "Pilot-FetchReach-v0.zip"
 #: UDPO on Fetch-Push with :data:`FETCH_PUSH_FAST` (lambda 1e-4, 50k warm-up steps), seed 0, its 150k-step checkpoint.
 FETCH_PUSH_SOURCE = SOURCES_DIR / "fetchpush_seed0" / "udpo" / "Pilot-FetchPush-v0_1" / "Pilot-FetchPush-v0.zip"
+#: The PointMaze goal planner and the open-arena Ant controller shipped for ``pointmaze-to-antmaze`` (one training seed of
+#: that challenge: its ``distill`` stage's planner and its ``chosen`` stage's checkpoint; ``shipped/README.md`` there).
+UMAZE_SHIPPED_DIR = REPO_DIR / "zoo_runs" / "pointmaze-to-antmaze" / "shipped"
 
 
 def _shipped_planner_transfer(outputs: dict[str, Path], net_arch: list[int]) -> dict[str, Any]:
@@ -664,6 +667,21 @@ REUSE_SHIPPED: dict[str, Challenge] = {
         "the shipped Fetch-Push UDPO's state planner, frozen, in a UDPO on Fetch-Push-High-Dim, vs SAC+HER",
         FETCH_PUSH_SOURCE,
         net_arch=[256, 256],
+    ),
+    # the challenge's evaluations of one training seed's models (the seed whose chosen checkpoint scored best on its
+    # held-out open-arena episodes), on every evaluation seed
+    "pointmaze-to-antmaze": Challenge(
+        "pointmaze-to-antmaze-shipped",
+        "the shipped PointMaze goal planner (SAC+HER teacher) guiding the shipped open-arena SAC Ant controller "
+        "(AntMaze_Open-v5, its checkpoint chosen on held-out open-arena episodes) on AntMaze_UMaze-v5, far start to "
+        "far goal (0 U-maze steps, no training stage), vs the same controller unguided",
+        "AntMaze_UMaze-v5",
+        (
+            Shipped("distill", UMAZE_SHIPPED_DIR / "pointmaze_planner_seed0.pt"),
+            Shipped("chosen", UMAZE_SHIPPED_DIR / "antmaze_open_controller_seed0_sac_300k.zip"),
+            *_umaze_evaluations("chosen", controller_algo="sac"),
+        ),
+        steps={"smoke": {"pilot": 50, "unguided": 50, "open_ground": 50}},  # smoke: 50-step episodes
     ),
     # one source for every seed: the plain Maze2D planner shipped with Zero-shot Ant-Maze (UDPO on Maze2D, uniform starts
     # and goals, 20k steps, seed 0: this challenge's source recipe at seed 0)
