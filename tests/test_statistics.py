@@ -15,6 +15,7 @@ from sb3_pilot.experiments.statistics import (
     method_statistics,
     pointwise_iqm,
     run_scores,
+    shared_sources,
     summary_statistics,
     verdict,
 )
@@ -127,9 +128,9 @@ def test_a_method_is_compared_with_the_baseline_its_summary_names() -> None:
     rng = np.random.default_rng(0)
     summary = {
         "methods": {
-            "guided": {"runs": once, "baseline": "unguided"},
-            "unguided": {"runs": never},
-            "SAC+HER": {"runs": ramps(rng.uniform(0, 2000, size=6))},
+            "guided": {"runs": once, "baseline": "unguided", "sources": 6},
+            "unguided": {"runs": never, "sources": 6},
+            "SAC+HER": {"runs": ramps(rng.uniform(0, 2000, size=6)), "sources": 0},
         }
     }
     comparisons = summary_statistics(summary, "SAC+HER", reps=200)["comparisons"]
@@ -181,3 +182,24 @@ def test_method_statistics_and_pointwise_iqm() -> None:
         method_statistics(runs, reps=0)
     with pytest.raises(ValueError, match="No runs"):
         method_statistics([])
+
+
+def test_seeds_sharing_sources_are_at_most_a_hint() -> None:
+    """Ten seeds that read one shipped source: the target's seed noise, not the source's; a hint, said so."""
+    above, below = {"value": 0.3, "ci": [0.2, 0.4]}, {"value": -0.3, "ci": [-0.4, -0.2]}
+    assert verdict(above, 10, sources=1) == (
+        "a hint: area gain +0.30 [+0.20, +0.40] above 0 on 10 seeds per method of 1 source (5 needed)"
+    )
+    assert verdict(above, 3, sources=3).endswith("on 3 seeds per method of 3 sources (5 needed)")
+    assert verdict(below, 10, sources=4).startswith("no gain shown: area gain -0.30 [-0.40, -0.20] below 0 on 10 seeds")
+    assert verdict(above, 5, sources=5) == verdict(above, 5, sources=0) == "confirmed: area gain +0.30 [+0.20, +0.40]"
+    assert verdict(above, 10, sources=None).endswith("on 10 seeds per method of unrecorded sources (5 needed)")
+    # the fewest sources of the sides that read any (SAC+HER reads none: 0); a side not recorded (None): unknown
+    assert (shared_sources(6, 0), shared_sources(1, 10), shared_sources(0, 0), shared_sources(None, 3)) == (6, 1, 0, None)
+    # through a summary: the method's recorded sources reach its verdict
+    pilot, her = ramps(np.linspace(0, 2000, 6)), ramps(np.linspace(8000, 10_000, 6))
+    summary = {"methods": {"PILoT": {"runs": pilot, "sources": 1}, "HER": {"runs": her, "sources": 0}}}
+    comparison = summary_statistics(summary, "HER", reps=REPS)["comparisons"]["PILoT"]
+    assert comparison["verdict"].startswith("a hint") and "of 1 source (5 needed)" in comparison["verdict"]
+    summary["methods"]["PILoT"]["sources"] = 6
+    assert summary_statistics(summary, "HER", reps=REPS)["comparisons"]["PILoT"]["verdict"].startswith("confirmed")

@@ -17,11 +17,13 @@ bootstrap intervals (seeds of the two methods resampled independently), and on t
 
 The verdict (:func:`verdict`) counts seeds: "confirmed" needs at least :data:`CONFIRM_SEEDS` seeds per method and an
 interval of the gain above 0 ("worse than SAC+HER": below 0); with fewer, a gain is at most "a hint", and under
-:data:`MIN_SEEDS` there is no verdict. The IQM cuts ``int(n / 4)`` runs at each end (SciPy's ``trim_mean``, which
-rliable calls): under 4 seeds it cuts none and is the plain mean, which ``aggregate`` says (:func:`aggregate_name`).
+:data:`MIN_SEEDS` there is no verdict. It counts sources too: seeds that read fewer than :data:`CONFIRM_SEEDS`
+distinct sources, or sources not recorded, give at most "a hint", however many seeds there are. The IQM cuts
+``int(n / 4)`` runs at each end (SciPy's ``trim_mean``, which rliable calls): under 4 seeds it cuts none and is the
+plain mean, which ``aggregate`` says (:func:`aggregate_name`).
 A method's ``sources`` (in the summary, when its runner recorded them) is the number of distinct stages its seeds
-read from (a trained source per seed, or one shipped source for all): seeds that share one source leave the
-source's own variance out of the interval.
+read from (a trained source per seed, or one shipped planner or controller for all): seeds that share one source
+leave the source's own variance out of the interval.
 
 Where the summary records how each seed's trained source learned its own task (``source``, with ``learned`` per
 seed), :func:`source_split_statistics` repeats the statistics of the methods that read it over the seeds whose source
@@ -205,19 +207,35 @@ def method_statistics(
     return result
 
 
-def verdict(gain: dict[str, Any], seeds: int, subset: str | None = None, against: str | None = None) -> str:
+def shared_sources(*sources: int | None) -> int | None:
+    """
+    The fewest distinct sources the seeds of the compared methods read (:func:`verdict`'s ``sources``).
+
+    :param sources: each method's distinct sources (0: it reads none; None: not recorded)
+    :return: the fewest of those above 0; 0 where no method reads one; None where a method's were not recorded
+    """
+    if None in sources:
+        return None
+    return min((count for count in sources if count), default=0)
+
+
+def verdict(
+    gain: dict[str, Any], seeds: int, subset: str | None = None, against: str | None = None, sources: int | None = 0
+) -> str:
     """
     The verdict on "the PILoT method learns the target faster than SAC+HER" (or does better than ``against``) from
-    the gain in area: "confirmed" when its interval lies above 0 on at least :data:`CONFIRM_SEEDS` seeds per method,
-    "worse than SAC+HER" when it lies below 0 on as many; "a hint" when only the estimate is above 0, or the interval
-    on fewer seeds or on a subset of the seeds chosen after the fact; "no gain shown" otherwise; no verdict under
-    :data:`MIN_SEEDS` seeds.
+    the gain in area: "confirmed" when its interval lies above 0 on at least :data:`CONFIRM_SEEDS` seeds per method
+    that read as many distinct sources, "worse than SAC+HER" when it lies below 0 on as many; "a hint" when only the
+    estimate is above 0, or the interval on fewer seeds or sources or on a subset of the seeds chosen after the fact;
+    "no gain shown" otherwise; no verdict under :data:`MIN_SEEDS` seeds.
 
     :param gain: ``{"value", "ci"}`` of ``IQM(area_PILoT) - IQM(area_HER)``
     :param seeds: the fewest seeds of the two methods
     :param subset: which seeds the PILoT method's are, where they were chosen after the fact (e.g. "the seeds whose
         source learned"); said in the verdict, which is then at most "a hint"
     :param against: the method compared with, where it is not SAC+HER (named in the verdict)
+    :param sources: the fewest distinct sources the seeds of either method read (:func:`shared_sources`; 0: neither
+        reads one); fewer than :data:`CONFIRM_SEEDS`, or None (not recorded), make the verdict at most "a hint"
     """
     value, (low, high) = gain["value"], gain["ci"]
     gain_text = f"area gain {value:+.2f} [{low:+.2f}, {high:+.2f}]"
@@ -225,8 +243,13 @@ def verdict(gain: dict[str, Any], seeds: int, subset: str | None = None, against
     chosen = f", a subset chosen after the fact ({subset})" if subset else ""
     if seeds < MIN_SEEDS:
         return f"too few seeds ({seeds}) for a verdict: {interval}{chosen}"
-    firm = seeds >= CONFIRM_SEEDS and not subset
-    few = f"{seeds} seeds per method" + ("" if seeds >= CONFIRM_SEEDS else f" ({CONFIRM_SEEDS} needed)")
+    shared = sources is None or 0 < sources < CONFIRM_SEEDS
+    firm = seeds >= CONFIRM_SEEDS and not shared and not subset
+    few = f"{seeds} seeds per method"
+    if shared:
+        few += " of unrecorded sources" if sources is None else f" of {sources} source{'s' * (sources != 1)}"
+    if seeds < CONFIRM_SEEDS or shared:
+        few += f" ({CONFIRM_SEEDS} needed)"
     if low > 0:
         return f"confirmed: {interval}" if firm else f"a hint: {interval} above 0 on {few}{chosen}"
     if high < 0:
@@ -246,6 +269,7 @@ def compare(
     censored_at: float | None = None,
     subset: str | None = None,
     against: str | None = None,
+    sources: int | None = 0,
 ) -> dict[str, Any]:
     """
     A PILoT method against SAC+HER (or another baseline) on the area under the success curve.
@@ -257,6 +281,7 @@ def compare(
     :param censored_at: every run's censoring step (:func:`run_scores`; None: each run's own)
     :param subset: which seeds ``pilot_runs`` are, where they were chosen after the fact (:func:`verdict`)
     :param against: the baseline's name where ``her_runs`` are not SAC+HER's (:func:`verdict`)
+    :param sources: the fewest distinct sources either side's seeds read (:func:`verdict`)
     :return: ``probability_of_improvement``, ``area_gain`` and ``steps_to_90_ratio`` (``{"value", "ci"}``; the ratio
         is the IQM of PILoT's steps to 90% over HER's, censored seeds included, None when no seed of either reached
         90%), ``seeds`` (``{"method": n, "baseline": n}``) and ``verdict``
@@ -283,7 +308,7 @@ def compare(
         "area_gain": area_gain,
         "steps_to_90_ratio": _interval([pilot_steps, her_steps], ratio, seed, reps) if reached else None,
         "seeds": {"method": len(pilot), "baseline": len(her)},
-        "verdict": verdict(area_gain, min(len(pilot), len(her)), subset, against),
+        "verdict": verdict(area_gain, min(len(pilot), len(her)), subset, against, sources),
     }
 
 
@@ -304,7 +329,7 @@ def summary_statistics(summary: dict[str, Any], baseline: str, seed: int = 0, re
     """
     methods = summary["methods"]
     comparisons = {
-        method: _compare_with(methods, result["runs"], against, baseline, seed, reps)
+        method: _compare_with(methods, result["runs"], result.get("sources"), against, baseline, seed, reps)
         for method, result in methods.items()
         if (against := _baseline_of(methods, method, baseline)) is not None
     }
@@ -337,15 +362,21 @@ def _baseline_of(methods: dict[str, Any], method: str, default: str) -> str | No
 def _compare_with(
     methods: dict[str, Any],
     runs: Sequence[dict[str, Any]],
+    sources: int | None,
     baseline: str,
     default: str,
     seed: int,
     reps: int,
     subset: str | None = None,
 ) -> dict[str, Any]:
-    """:func:`compare` of ``runs`` with every run of ``baseline`` (named in the verdict unless it is ``default``)."""
+    """
+    :func:`compare` of ``runs`` (whose seeds read ``sources`` distinct sources) with every run of ``baseline`` (named
+    in the verdict unless it is ``default``).
+    """
     against = None if baseline == default else baseline
-    return {**compare(runs, methods[baseline]["runs"], seed, reps, subset=subset, against=against), "baseline": baseline}
+    shared = shared_sources(sources, methods[baseline].get("sources"))
+    comparison = compare(runs, methods[baseline]["runs"], seed, reps, subset=subset, against=against, sources=shared)
+    return {**comparison, "baseline": baseline}
 
 
 #: How the seeds of a subset row were chosen (:func:`source_split_statistics`), in its verdict.
@@ -388,7 +419,9 @@ def source_split_statistics(summary: dict[str, Any], baseline: str, seed: int = 
         split["methods"][method] = {**method_statistics(runs, seed, reps), "sources": len(hashes)}
         against = _baseline_of(methods, method, baseline)
         if against is not None:
-            split["comparisons"][method] = _compare_with(methods, runs, against, baseline, seed, reps, SOURCE_LEARNED_SUBSET)
+            split["comparisons"][method] = _compare_with(
+                methods, runs, len(hashes), against, baseline, seed, reps, SOURCE_LEARNED_SUBSET
+            )
     return split
 
 
