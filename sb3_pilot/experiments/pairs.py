@@ -19,8 +19,9 @@ final model (``models/``) played again for ``episodes`` deterministic episodes (
 Verdict, per PILoT method against SAC+HER (a guided controller: against the same controller unguided, where the
 challenge runs it, and the verdict names it), on the gain ``IQM(area_PILoT) - IQM(area_HER)`` and its 95% interval
 (:func:`~sb3_pilot.experiments.statistics.verdict`): ``confirmed`` when the interval lies above 0 on at least 5 seeds
-per method, ``worse than SAC+HER`` when it lies below 0 on as many, ``a hint`` when only the estimate lies above 0 or
-the interval does on fewer seeds, ``no gain shown`` otherwise, and no verdict under 3 seeds per method.
+per method from at least 5 distinct sources (where a method reads one), ``worse than SAC+HER`` when it lies below 0
+on as many, ``a hint`` when only the estimate lies above 0 or the interval does on fewer seeds or sources, ``no gain
+shown`` otherwise, and no verdict under 3 seeds per method.
 
 Where the methods read a trained source (``source`` in ``summary.json``, or read from the models of a summary written
 before the runner recorded it), the pair's label says how many seeds' sources learned their own task (final success
