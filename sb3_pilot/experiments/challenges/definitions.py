@@ -285,7 +285,7 @@ MAZE_CAR_STAGES = (
 )
 MAZE_CAR_STEPS = {
     "smoke": {"source": 300, "pilot": 300, "pilot_disp": 300, "her": 300, "mega": 300},
-    # the target's budget was fixed from SAC+HER's runs alone, before any HER+PILoT run (zoo_runs/maze-car/README.md);
+    # the target's budget was fixed from SAC+HER's runs alone, before any HER+PILoT run (zoo_runs/maze-car-budget/README.md);
     # the source's: Zero-shot Ant-Maze's Maze2D source, which made the shipped plain Maze2D planner
     "cpu": {"source": 20_000, "pilot": 20_000, "pilot_disp": 20_000, "her": 20_000, "mega": 20_000},
 }
