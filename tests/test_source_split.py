@@ -190,7 +190,7 @@ def test_a_recorded_source_outlives_its_models(tmp_path: Path) -> None:
     assert again["source"] == summary["source"] and again["methods"] == summary["methods"]
 
 
-@pytest.mark.parametrize("folder", ["high-dim-action-push", "high-dim-action-push-shipped"])
+@pytest.mark.parametrize("folder", ["complex-morph-earlier-presets", "high-dim-action-push-shipped"])
 def test_older_summaries_load_without_a_split(tmp_path: Path, folder: str) -> None:
     """Committed summaries from before the source was recorded (models gone), or with a shipped source: no subset."""
     run_dir = tmp_path / folder
