@@ -174,9 +174,11 @@ def test_lean_her_samples_are_sb3_her_samples(copy_info_dict: bool, buffer_size:
         ({"buffer_size": -10}, "buffer_size must be >= 1"),
         ({"batch_size": 0}, "batch_size must be >= 1"),
         ({"batch_size": -3}, "batch_size must be >= 1"),
+        ({"tau": 1.5}, "tau must be <= 1"),
+        ({"gamma": -0.5}, "gamma must be >= 0"),
     ],
 )
-def test_lean_sac_refuses_empty_buffers_and_batches(kwargs: dict, message: str) -> None:
-    """SB3 accepts buffer_size=0 and fails on batch_size=0 at its first sample: LeanSAC refuses both by name."""
+def test_lean_sac_refuses_empty_buffers_batches_and_bad_coefficients(kwargs: dict, message: str) -> None:
+    """SB3 accepts buffer_size=0, fails on batch_size=0 at its first sample, trains on tau=1.5: LeanSAC refuses them."""
     with pytest.raises(ValueError, match=message):
         LeanSAC("MultiInputPolicy", PointGoalEnv(), **kwargs)

@@ -22,16 +22,21 @@ from sb3_pilot.common.critics import EnsembleCritic, stack_sb3_critic_parameters
 from sb3_pilot.common.utils import check_number
 
 
-def check_replay_sizes(buffer_size: int, batch_size: int) -> None:
+def check_update_settings(buffer_size: int, batch_size: int, tau: float, gamma: float) -> None:
     """
-    Refuse a replay buffer or a minibatch that could hold no transition, before any work, with a ``ValueError`` naming
-    the argument (SB3 accepts ``buffer_size=0`` and fails on ``batch_size=0`` when it first samples).
+    Refuse a replay buffer or a minibatch that could hold no transition, and a soft-update coefficient or a discount
+    outside [0, 1], before any work, with a ``ValueError`` naming the argument (SB3 accepts ``buffer_size=0``, fails on
+    ``batch_size=0`` when it first samples, and trains on ``tau=2`` or ``gamma=1.5`` until the critics diverge).
 
     :param buffer_size: size of the replay buffer
     :param batch_size: minibatch size of each gradient step
+    :param tau: the soft (Polyak) update coefficient of the target critics
+    :param gamma: the discount factor
     """
     check_number("buffer_size", buffer_size, minimum=1, integer=True)
     check_number("batch_size", batch_size, minimum=1, integer=True)
+    check_number("tau", tau, minimum=0, maximum=1)
+    check_number("gamma", gamma, minimum=0, maximum=1)
 
 
 def soft_update(params: list[th.Tensor], target_params: list[th.Tensor], tau: float) -> None:

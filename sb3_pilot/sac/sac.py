@@ -12,7 +12,7 @@ from stable_baselines3.sac import policies as sac_policies
 
 from sb3_pilot.common.cuda_graph import CudaGraphUpdate
 from sb3_pilot.common.distributions import reparameterised_log_prob
-from sb3_pilot.common.lean import LeanSACSteps, LossRecorder, check_replay_sizes
+from sb3_pilot.common.lean import LeanSACSteps, LossRecorder, check_update_settings
 from sb3_pilot.common.torch_layers import EncodedObservations, PixelGoalSACPolicy
 from sb3_pilot.sac.policies import CnnPolicy, LeanSACPolicy, MlpPolicy, MultiInputPolicy
 
@@ -50,7 +50,7 @@ class LeanSAC(LeanSACSteps, SAC):
     :param learning_starts: env steps of uniform random actions before learning starts
     :param batch_size: minibatch size of each gradient step (>= 1)
     :param tau: the soft (Polyak) update coefficient of the target critics, in [0, 1]
-    :param gamma: the discount factor
+    :param gamma: the discount factor, in [0, 1]
     :param train_freq: update the model every ``train_freq`` steps (or a tuple such as ``(5, "episode")``)
     :param gradient_steps: gradient steps after each rollout (-1: as many as env steps collected)
     :param action_noise: noise added to the actions while collecting (None: the policy's own sampling)
@@ -115,7 +115,7 @@ class LeanSAC(LeanSACSteps, SAC):
         cuda_graphs: bool = False,
         _init_setup_model: bool = True,
     ):
-        check_replay_sizes(buffer_size, batch_size)
+        check_update_settings(buffer_size, batch_size, tau, gamma)
         self.cuda_graphs = cuda_graphs
         super().__init__(
             policy,

@@ -27,7 +27,7 @@ from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
 from torch.nn import functional as F
 
 from sb3_pilot.common.cuda_graph import CudaGraphUpdate
-from sb3_pilot.common.lean import LeanSACSteps, LossRecorder, check_replay_sizes
+from sb3_pilot.common.lean import LeanSACSteps, LossRecorder, check_update_settings
 from sb3_pilot.common.utils import check_number
 from sb3_pilot.udpo.policies import (
     ENTROPY_TERMS,
@@ -174,7 +174,7 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
         refuse_removed_options(type(self).__name__, {**removed_options, **removed_policy_options})
         if use_sde:
             raise ValueError(NO_SDE)
-        check_replay_sizes(buffer_size, batch_size)
+        check_update_settings(buffer_size, batch_size, tau, gamma)
         check_number("planner_coef (lambda)", planner_coef, minimum=0)
         if entropy_term not in ENTROPY_TERMS:
             raise ValueError(f"entropy_term must be one of {ENTROPY_TERMS}, got {entropy_term!r}.")
