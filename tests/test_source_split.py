@@ -202,3 +202,28 @@ def test_older_summaries_load_without_a_split(tmp_path: Path, folder: str) -> No
     lines = table([run_dir], reps=20).splitlines()
     assert len(lines) == 2 + len(summary["methods"]) and "sources learned" not in lines[2]
     assert "only the seeds" not in format_table(summary)
+
+
+def test_a_finished_method_of_an_unfinished_seed_outlives_its_models(tmp_path: Path) -> None:
+    """SAC + HER finished on seed 1 while its source did not: summary.json keeps that run apart from the statistics, and
+    a fresh clone trains seed 1's source and transfer only."""
+    out_dir, seeds = tmp_path / CHALLENGE.name, [0, 1]
+    budget = BUDGETS["cpu"]
+    ctx = {"budget": budget, "steps": CHALLENGE.steps["cpu"], "fast_hyperparams": CHALLENGE.fast_hyperparams}
+    tasks, _ = plan(CHALLENGE, seeds, out_dir, ctx)
+    markers = make_run(out_dir, target_curves(seeds))
+    for task in tasks:
+        markers[task.key]["config_hash"] = task.digest
+    del markers["seed_1/source"], markers["seed_1/pilot"]  # stopped (or never started) before they finished
+    summary = summarize(CHALLENGE, budget, [0], out_dir, markers)
+    assert [run["seed"] for run in summary["methods"][HER]["runs"]] == [0]
+    assert summary["partial_runs"]["seed_1/her"]["success_rate"] == curve(50_000)
+    assert list(summary["partial_runs"]) == ["seed_1/her"]
+    shutil.rmtree(out_dir / "models")
+    (out_dir / SUMMARY).write_text(json.dumps(summary))
+    tasks, finished = plan(CHALLENGE, seeds, out_dir, ctx)
+    assert [task.key for task in tasks] == ["seed_1/source", "seed_1/pilot"]
+    her = finished["seed_1/her"]
+    assert her["from_summary"] and her["recorded"] == summary["partial_runs"]["seed_1/her"]
+    # written again before seed 1 finishes (its models gone), the run is still kept
+    assert summarize(CHALLENGE, budget, [0], out_dir, finished)["partial_runs"] == summary["partial_runs"]

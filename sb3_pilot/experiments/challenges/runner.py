@@ -22,6 +22,7 @@ from sb3_pilot.experiments.challenges.stages import (
     STAGE_LOG,
     STAGE_MARKER,
     Budget,
+    Stage,
     StageContext,
     ZooTrain,
     config_hash,
@@ -166,7 +167,9 @@ def summarize(
     The challenge's results: success rate vs env steps on the target task, per compared method and seed, their
     mean over seeds, the steps to 50% / 90% success and the number of distinct sources its seeds read from
     (:func:`count_sources`); for a zero-shot method, the guidance horizon and switch rule; where methods read a trained
-    source, how it learned its own task per seed (``source``, :func:`source_learning`).
+    source, how it learned its own task per seed (``source``, :func:`source_learning`). The compared methods that
+    finished on a seed with stages still to run are kept apart (``partial_runs``, by ``seed_<k>/<stage>``), so that a
+    later run on a fresh clone does not train them again; no statistic reads them.
 
     :param challenge: the challenge
     :param budget: the budget it ran at
@@ -177,20 +180,22 @@ def summarize(
     """
     methods: dict[str, Any] = {}
     by_name = {stage.name: stage for stage in challenge.stages}
+
+    def method_run(stage: Stage, seed: int) -> dict[str, Any]:
+        """A compared method's run on one seed: recorded, where its models are gone, else read from its folder."""
+        recorded = markers.get(f"seed_{seed}/{stage.name}", {}).get("recorded")
+        if recorded is not None:  # its models are gone: the run as an earlier summary.json recorded it
+            return recorded
+        stage_dir = out_dir / "models" / f"seed_{seed}" / stage.name
+        timesteps, success_rate = stage.curve(stage_dir)
+        run = {"seed": seed, "timesteps": timesteps, "success_rate": success_rate, **steps_to(timesteps, success_rate)}
+        distances = stage.distances(stage_dir)
+        return run if distances is None else {**run, "final_distance": distances}
+
     for stage in challenge.stages:
         if stage.method is None:
             continue
-        runs = []
-        for seed in seeds:
-            recorded = markers.get(f"seed_{seed}/{stage.name}", {}).get("recorded")
-            if recorded is not None:  # its models are gone: the run as an earlier summary.json recorded it
-                runs.append(recorded)
-                continue
-            stage_dir = out_dir / "models" / f"seed_{seed}" / stage.name
-            timesteps, success_rate = stage.curve(stage_dir)
-            run = {"seed": seed, "timesteps": timesteps, "success_rate": success_rate, **steps_to(timesteps, success_rate)}
-            distances = stage.distances(stage_dir)
-            runs.append(run if distances is None else {**run, "final_distance": distances})
+        runs = [method_run(stage, seed) for seed in seeds]
         sources = count_sources(challenge, stage.name, markers, seeds)
         mean = mean_curve(runs)
         methods[stage.method] = {"stage": stage.name, "env_id": stage.env_id, "runs": runs, "mean": mean, "sources": sources}
@@ -218,6 +223,15 @@ def summarize(
         "stages": stages,
         "wall_time_s": round(sum(marker["wall_time_s"] for marker in markers.values()), 1),
     }
+    # the finished methods of seeds with stages still to run: kept for resuming, out of the statistics
+    partial = {
+        key: method_run(by_name[name], int(seed_name.removeprefix("seed_")))
+        for key in markers
+        for seed_name, name in [key.split("/", 1)]
+        if name in by_name and by_name[name].method is not None and int(seed_name.removeprefix("seed_")) not in seeds
+    }
+    if partial:
+        summary["partial_runs"] = partial
     source = source_learning(challenge, seeds, out_dir, markers)
     return summary if source is None else {**summary, "source": source}
 
@@ -267,6 +281,7 @@ def plan(
     }
     if "source" in record:  # the trained source's own learning, kept as the methods' runs are
         recorded_runs.update({f"seed_{run['seed']}/{record['source']['stage']}": run for run in record["source"]["runs"]})
+    recorded_runs.update(record.get("partial_runs", {}))  # methods finished on seeds with stages still to run
     todo: dict[str, StageTask] = {}
     finished: dict[str, dict[str, Any]] = {}
     for seed in seeds:
