@@ -1,6 +1,7 @@
 """
 ``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N [--root runs] [--plot]
-[--jobs N | --backend ray [--ray-address ADDR]] [--threads T] [--reuse-shipped] [--stages NAME ...] [--no-progress]``.
+[--jobs N | --backend ray [--ray-address ADDR]] [--threads T] [--keep-going] [--reuse-shipped] [--stages NAME ...]
+[--no-progress]``.
 
 On a terminal it shows a live table of the running stages (env steps, elapsed, ETA); otherwise plain lines. Each
 stage's output goes to ``stage.log`` in its folder, a zoo stage's command line to ``command.txt``.
@@ -52,6 +53,12 @@ def main(argv: list[str] | None = None) -> None:
         "--threads", type=int, default=1, help="torch threads per stage process (the CPUs each Ray task declares)"
     )
     parser.add_argument(
+        "--keep-going",
+        action="store_true",
+        help="after a stage fails, go on with the stages that do not read from it (other seeds', baselines); without "
+        "it no stage starts after a failure. Either way the running stages finish and are recorded",
+    )
+    parser.add_argument(
         "--reuse-shipped",
         action="store_true",
         help=f"evaluate the models shipped in the repository instead of training them ({', '.join(REUSE_SHIPPED)}): "
@@ -62,7 +69,8 @@ def main(argv: list[str] | None = None) -> None:
         nargs="+",
         default=None,
         help="run only these stages and those they read from (e.g. --stages her: the baseline alone, to size a budget "
-        "before any PILoT run); the same stage folders as the whole challenge's, which a later full run reuses",
+        "before any PILoT run); the same stage folders as the whole challenge's, which a later full run reuses; "
+        "summary.json keeps its records of the other stages",
     )
     args = parser.parse_args(argv)
     if args.seeds < 1:
@@ -93,6 +101,7 @@ def main(argv: list[str] | None = None) -> None:
                 backend=args.backend,
                 ray_address=args.ray_address,
                 threads=args.threads,
+                keep_going=args.keep_going,
             )
         except (StageFailed, ShippedFileMissing) as error:
             sys.exit(f"{challenge.name}: {error}")

@@ -5,8 +5,9 @@ the stages it reads from), run by up to ``jobs`` processes on this machine or as
 Every stage runs in a process of its own (``python -c ...stage_process_main``): its stdout and stderr go to
 ``stage.log`` in its folder (a zoo stage's command line to ``command.txt`` too), it uses ``ctx.threads`` torch /
 OpenMP threads (1 unless told otherwise, so that N stages on N cores do not fight), it writes its marker when it
-succeeds and dies with the process that started it. A failed stage raises :class:`StageFailed` (its key and its
-log's tail) after the stages still running have been stopped.
+succeeds and dies with the process that started it. After a failed stage no other starts (``keep_going``: none that
+reads from a failed stage), the stages running finish and are recorded, then :class:`StageFailed` (its key and its
+log's tail) is raised; an interrupt (Ctrl-C, SIGTERM) stops the running stages.
 
 - ``local`` (``--jobs N``): a dependency-aware submit loop over :mod:`subprocess`, at most N stages at once.
 - ``ray`` (``--backend ray [--ray-address ADDR]``): every stage a Ray task declaring ``ctx.threads`` CPUs, its
@@ -54,7 +55,7 @@ class StageFailed(RuntimeError):
     A stage failed: the message names it, says why and quotes the tail of its log.
 
     :param key: ``seed_<k>/<stage>``
-    :param reason: why (exit status, node, the stages stopped with it)
+    :param reason: why (exit status, node, the other stages that failed or did not run)
     :param log: its log file
     :param tail: the last lines of its log
     """
@@ -95,14 +96,16 @@ class StageTask:
         return self.stage_dir / STAGE_LOG
 
 
-#: Called when a stage starts, when it finishes (with its marker), and at every look at the running stages.
+#: Called when a stage starts, when it finishes (with its marker), at every look at the running stages, and when a
+#: stage fails (with its error and the keys of the stages still running).
 OnStart = Callable[[StageTask], None]
 OnFinish = Callable[[StageTask, dict[str, Any]], None]
 OnTick = Callable[[], None]
+OnFail = Callable[[StageFailed, list[str]], None]
 
 
-def _nothing() -> None:
-    """The default :data:`OnTick`."""
+def _nothing(*args: Any) -> None:
+    """The default :data:`OnTick` and :data:`OnFail`."""
 
 
 def log_tail(path: Path, lines: int = TAIL_LINES) -> str:
@@ -118,6 +121,21 @@ def log_tail(path: Path, lines: int = TAIL_LINES) -> str:
 def failure(task: StageTask, reason: str) -> StageFailed:
     """The error of a failed stage: its key, why, and its log's tail."""
     return StageFailed(task.key, reason, str(task.log), log_tail(task.log))
+
+
+def run_failed(failures: Sequence[StageFailed], not_run: Sequence[str]) -> StageFailed:
+    """
+    The error a run with failed stages ends with: the first failure, naming the other failed stages and those not run.
+
+    :param failures: the failed stages' errors, in the order they failed
+    :param not_run: the stages that did not start because of them
+    """
+    first, notes = failures[0], [failures[0].reason]
+    if len(failures) > 1:
+        notes.append(f"also failed: {', '.join(error.key for error in failures[1:])}")
+    if not_run:
+        notes.append(f"not run: {', '.join(not_run)}")
+    return StageFailed(first.key, "; ".join(notes), first.log, first.tail)
 
 
 def read_marker(task: StageTask) -> dict[str, Any]:
@@ -195,26 +213,44 @@ def stage_process_main() -> None:
 
 
 def run_local(
-    tasks: Sequence[StageTask], jobs: int, on_start: OnStart, on_finish: OnFinish, on_tick: OnTick = _nothing
+    tasks: Sequence[StageTask],
+    jobs: int,
+    on_start: OnStart,
+    on_finish: OnFinish,
+    on_tick: OnTick = _nothing,
+    on_fail: OnFail = _nothing,
+    keep_going: bool = False,
 ) -> None:
     """
-    Run stages on this machine, at most ``jobs`` at once, each once the stages it reads from have finished.
+    Run stages on this machine, at most ``jobs`` at once, each once the stages it reads from have finished. After a
+    stage fails, the stages running finish; no other starts, or with ``keep_going`` those that read from no failed
+    stage do (other seeds', baselines).
 
     :param tasks: the stages to run, a stage after those it reads from (the others have finished before)
     :param jobs: how many stages may run at once
     :param on_start: called when a stage starts
     :param on_finish: called when a stage finishes
     :param on_tick: called every :data:`POLL_S` while stages run
-    :raise StageFailed: when a stage fails (the others still running are stopped first)
+    :param on_fail: called when a stage fails
+    :param keep_going: after a failure, go on with the stages that do not read from a failed stage
+    :raise StageFailed: once the stages running have finished, when a stage failed (:func:`run_failed`)
     """
     if jobs < 1:
         raise ValueError(f"jobs must be at least 1, not {jobs}")
     pending = list(tasks)
     to_run = {task.key for task in tasks}
     finished: set[str] = set()
+    failures: list[StageFailed] = []
+    not_run: list[str] = []
     running: dict[str, tuple[StageTask, subprocess.Popen]] = {}
     try:
         while pending or running:
+            blocked = {error.key for error in failures}
+            for task in list(pending):  # a stage after those it reads from: what reads from a blocked one is blocked
+                if failures and (not keep_going or blocked.intersection(task.needs)):
+                    pending.remove(task)
+                    not_run.append(task.key)
+                    blocked.add(task.key)
             for task in list(pending):
                 if len(running) >= jobs:
                     break
@@ -223,7 +259,9 @@ def run_local(
                     running[task.key] = (task, start_stage(task))
                     on_start(task)
             if not running:
-                raise ValueError(f"Stages wait for stages that never run: {[task.key for task in pending]}")
+                if pending:
+                    raise ValueError(f"Stages wait for stages that never run: {[task.key for task in pending]}")
+                break
             time.sleep(POLL_S)
             on_tick()
             for key, (task, process) in list(running.items()):
@@ -232,14 +270,15 @@ def run_local(
                     continue
                 del running[key]
                 if code != 0:
-                    stop_stages([process for _, process in running.values()])
-                    stopped = f"; stopped {', '.join(running)}" if running else ""
-                    running.clear()
-                    raise failure(task, f"exit status {code}{stopped}")
+                    failures.append(failure(task, f"exit status {code}"))
+                    on_fail(failures[-1], list(running))
+                    continue
                 finished.add(key)
                 on_finish(task, read_marker(task))
     finally:  # an error here or an interrupt (Ctrl-C): no stage process is left behind
         stop_stages([process for _, process in running.values()])
+    if failures:
+        raise run_failed(failures, not_run)
 
 
 def _ray_stage(task: StageTask, *needs: dict[str, Any]) -> dict[str, Any]:
@@ -268,19 +307,29 @@ def _ray_stage(task: StageTask, *needs: dict[str, Any]) -> dict[str, Any]:
 
 
 def run_ray(
-    tasks: Sequence[StageTask], address: str | None, on_start: OnStart, on_finish: OnFinish, on_tick: OnTick = _nothing
+    tasks: Sequence[StageTask],
+    address: str | None,
+    on_start: OnStart,
+    on_finish: OnFinish,
+    on_tick: OnTick = _nothing,
+    on_fail: OnFail = _nothing,
+    keep_going: bool = False,
 ) -> None:
     """
     Run stages as Ray tasks: each declares ``ctx.threads`` CPUs and gets the stages it reads from as object
     references. Without ``address`` and without a running Ray, ``ray.init()`` starts a local cluster (this
-    machine's cores) and shuts it down afterwards; an initialised Ray is used as it is.
+    machine's cores) and shuts it down afterwards; an initialised Ray is used as it is. After a stage fails, the
+    tasks not started yet are cancelled (``keep_going``: only those that read from a failed stage, which Ray does not
+    start) and the running ones finish.
 
     :param tasks: the stages to run, a stage after those it reads from (the others have finished before)
     :param address: a Ray cluster's address (``ray.init(address=...)``), e.g. ``auto`` or ``ray://HEAD:10001``
     :param on_start: called when a stage is seen running (its ``stage.log`` exists)
     :param on_finish: called when a stage finishes
     :param on_tick: called about every second while stages run
-    :raise StageFailed: when a stage fails (the other tasks are cancelled first, which stops their processes)
+    :param on_fail: called when a stage fails
+    :param keep_going: after a failure, go on with the stages that do not read from a failed stage
+    :raise StageFailed: once the running tasks have finished, when a stage failed (:func:`run_failed`)
     """
     try:
         import ray
@@ -305,6 +354,8 @@ def run_ray(
         refs[task.key] = remote.options(name=task.key, num_cpus=task.ctx.threads).remote(task, *dependencies)
     by_ref = {ref: task for task, ref in zip(tasks, refs.values(), strict=True)}
     waiting, seen = list(refs.values()), set()
+    failures: list[StageFailed] = []
+    not_run: list[str] = []
     try:
         while waiting:
             done, waiting = ray.wait(waiting, num_returns=1, timeout=1.0)
@@ -319,18 +370,30 @@ def run_ray(
                     marker = ray.get(ref)
                 except Exception as error:
                     cause = getattr(error, "cause", error)
-                    stopped = f"; cancelled {', '.join(by_ref[ref].key for ref in waiting)}" if waiting else ""
-                    if isinstance(cause, StageFailed):
-                        raise StageFailed(cause.key, f"{cause.reason}{stopped}", cause.log, cause.tail) from None
-                    raise failure(task, f"{type(error).__name__} in Ray{stopped}: {error}") from error
+                    if isinstance(cause, StageFailed) and cause.key != task.key:  # it reads from a failed stage
+                        not_run.append(task.key)
+                        continue
+                    in_ray = f"{type(error).__name__} in Ray: {error}"
+                    failed = cause if isinstance(cause, StageFailed) else failure(task, in_ray)
+                    failures.append(failed)
+                    if not keep_going:  # the tasks not started yet are cancelled, the running ones finish
+                        cancelled = [other for other in waiting if by_ref[other].key not in seen]
+                        for other in cancelled:
+                            ray.cancel(other)
+                        not_run.extend(by_ref[other].key for other in cancelled)
+                        waiting = [other for other in waiting if by_ref[other].key in seen]
+                    on_fail(failed, [by_ref[other].key for other in waiting])
+                    continue
                 if task.key not in seen:
                     seen.add(task.key)
                     on_start(task)
                 on_finish(task, marker)
-    finally:  # a failure or an interrupt: cancel the rest (a running task stops its process) and wait for them
+    finally:  # an interrupt: cancel the rest (a running task stops its process) and wait for them
         for ref in waiting:
             ray.cancel(ref)
         if waiting:
             ray.wait(waiting, num_returns=len(waiting), timeout=3 * STOP_GRACE_S)
         if started_here:
             ray.shutdown()
+    if failures:
+        raise run_failed(failures, not_run)

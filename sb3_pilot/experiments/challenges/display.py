@@ -24,6 +24,7 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 from rich.text import Text
 
+from sb3_pilot.experiments.challenges.backends import StageFailed
 from sb3_pilot.experiments.challenges.stages import PROGRESS_CSV
 
 #: The column of SB3's ``progress.csv`` that holds the env steps done.
@@ -253,6 +254,19 @@ class RunDisplay:
         self.running.pop(key, None)
         self.done += 1
         self.print(f"{stage_name(key)}: finished in {wall_time_s:.0f} s")
+        if self.running:
+            self._show_running()
+
+    def failed(self, error: StageFailed, running: list[str]) -> None:
+        """
+        A stage failed (its log's tail comes with the run's error, at the end).
+
+        :param error: its error
+        :param running: the stages still running, which finish before the run ends
+        """
+        self.running.pop(error.key, None)
+        waiting = f"; waiting for {', '.join(running)} to finish (Ctrl-C stops them)" if running else ""
+        self.print(f"{stage_name(error.key)}: failed ({error.reason}), log: {error.log}{waiting}")
         if self.running:
             self._show_running()
 

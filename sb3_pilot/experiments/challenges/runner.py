@@ -224,12 +224,12 @@ def summarize(
         "wall_time_s": round(sum(marker["wall_time_s"] for marker in markers.values()), 1),
     }
     # the finished methods of seeds with stages still to run: kept for resuming, out of the statistics
-    partial = {
-        key: method_run(by_name[name], int(seed_name.removeprefix("seed_")))
-        for key in markers
-        for seed_name, name in [key.split("/", 1)]
-        if name in by_name and by_name[name].method is not None and int(seed_name.removeprefix("seed_")) not in seeds
-    }
+    partial = {}
+    for key in markers:
+        seed_name, name = key.split("/", 1)
+        seed = int(seed_name.removeprefix("seed_"))
+        if name in by_name and by_name[name].method is not None and seed not in seeds:
+            partial[key] = method_run(by_name[name], seed)
     if partial:
         summary["partial_runs"] = partial
     source = source_learning(challenge, seeds, out_dir, markers)
@@ -258,6 +258,52 @@ def stage_graph(challenge: Challenge, seeds: Sequence[int]) -> dict[str, tuple[s
     return graph
 
 
+def read_record(out_dir: Path) -> dict[str, Any]:
+    """
+    What a challenge's ``summary.json`` records (nothing where there is none).
+
+    :param out_dir: ``<root>/<challenge>``
+    :return: the summary, or one with no methods and no stages
+    """
+    path = out_dir / SUMMARY
+    return json.loads(path.read_text()) if path.exists() else {"methods": {}, "stages": {}}
+
+
+def recorded_runs(record: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """
+    The runs a summary records, by ``seed_<k>/<stage>``: its methods', its trained source's own learning and its
+    ``partial_runs``.
+
+    :param record: a ``summary.json``
+    :return: the runs
+    """
+    runs = {f"seed_{run['seed']}/{result['stage']}": run for result in record["methods"].values() for run in result["runs"]}
+    if "source" in record:  # the trained source's own learning, kept as the methods' runs are
+        runs.update({f"seed_{run['seed']}/{record['source']['stage']}": run for run in record["source"]["runs"]})
+    runs.update(record.get("partial_runs", {}))  # methods finished on seeds with stages still to run
+    return runs
+
+
+def keep_earlier(summary: dict[str, Any], record: dict[str, Any], keys: Sequence[str]) -> dict[str, Any]:
+    """
+    A summary with what an earlier one recorded of the stages a run did not cover (``--stages``, fewer ``--seeds``):
+    their stage records, and their runs in ``partial_runs`` (out of the statistics), so that a later run over them
+    finds them finished where their hashes still match, instead of training them again.
+
+    :param summary: the run's summary (:func:`summarize`)
+    :param record: the ``summary.json`` the run started from (:func:`read_record`)
+    :param keys: the run's stages, ``seed_<k>/<stage>``
+    :return: the summary, with the earlier records of the other stages
+    """
+    covered = set(keys) | set(summary["stages"])
+    stages = {key: entry for key, entry in record["stages"].items() if key not in covered}
+    if not stages:
+        return summary
+    runs = {key: run for key, run in recorded_runs(record).items() if key in stages}
+    partial = {**summary.get("partial_runs", {}), **runs}
+    return {**summary, "stages": {**summary["stages"], **stages}, **({"partial_runs": partial} if partial else {})}
+
+
 def plan(
     challenge: Challenge, seeds: Sequence[int], out_dir: Path, ctx_kwargs: dict[str, Any]
 ) -> tuple[list[StageTask], dict[str, dict[str, Any]]]:
@@ -274,14 +320,8 @@ def plan(
     :return: the stages to run (a stage after those it reads from) and the markers of the finished ones
     """
     graph = stage_graph(challenge, seeds)
-    summary_path = out_dir / SUMMARY
-    record = json.loads(summary_path.read_text()) if summary_path.exists() else {"methods": {}, "stages": {}}
-    recorded_runs = {
-        f"seed_{run['seed']}/{result['stage']}": run for result in record["methods"].values() for run in result["runs"]
-    }
-    if "source" in record:  # the trained source's own learning, kept as the methods' runs are
-        recorded_runs.update({f"seed_{run['seed']}/{record['source']['stage']}": run for run in record["source"]["runs"]})
-    recorded_runs.update(record.get("partial_runs", {}))  # methods finished on seeds with stages still to run
+    record = read_record(out_dir)
+    runs = recorded_runs(record)
     todo: dict[str, StageTask] = {}
     finished: dict[str, dict[str, Any]] = {}
     for seed in seeds:
@@ -300,12 +340,8 @@ def plan(
                 if marker["config_hash"] == digest:
                     finished[key] = {**marker, "skipped": True}
                     continue
-            elif (
-                not stage_dir.exists()
-                and recorded.get("config_hash") == digest
-                and (stage.method is None or key in recorded_runs)
-            ):
-                finished[key] = {**recorded, "skipped": True, "from_summary": True, "recorded": recorded_runs.get(key)}
+            elif not stage_dir.exists() and recorded.get("config_hash") == digest and (stage.method is None or key in runs):
+                finished[key] = {**recorded, "skipped": True, "from_summary": True, "recorded": runs.get(key)}
             todo[key] = StageTask(key, stage, ctx, stage_dir, config, digest, graph[key])
     for key in reversed(graph):  # a recorded stage that a stage left to run reads from runs again
         if key in todo and key not in finished:
@@ -327,6 +363,7 @@ def run_challenge(
     backend: str = "local",
     ray_address: str | None = None,
     threads: int = 1,
+    keep_going: bool = False,
 ) -> dict[str, Any]:
     """
     Run (or resume) a challenge: every stage for every seed, each in a process of its own (its output in
@@ -347,8 +384,10 @@ def run_challenge(
     :param backend: ``local`` (this machine, ``jobs`` processes) or ``ray`` (every stage a Ray task)
     :param ray_address: ``ray`` backend: the cluster's address (None: a running Ray, or a local one started here)
     :param threads: torch threads of each stage's process (the CPUs a Ray task declares)
+    :param keep_going: after a stage fails, go on with the stages that do not read from it (other seeds' stages,
+        baselines); otherwise no stage starts after a failure. Either way the stages running finish and are recorded.
     :return: the summary
-    :raise StageFailed: when a stage fails (its name and its log's tail; the other stages were stopped)
+    :raise StageFailed: once the stages running have finished, when a stage failed (its name and its log's tail)
     """
     if isinstance(name, Challenge):
         challenge = name
@@ -373,6 +412,7 @@ def run_challenge(
     fast = challenge.fast_hyperparams if budget.fast else {}
     th.set_num_threads(1)  # this process only waits for the stages' processes
     ctx_kwargs = {"budget": budget, "steps": stage_steps, "fast_hyperparams": fast, "verbose": verbose, "threads": threads}
+    earlier = read_record(out_dir)  # what this run does not cover (other stages or seeds) stays recorded
     tasks, markers = plan(challenge, seeds, out_dir, ctx_kwargs)
     for task in tasks:  # interrupted, or configured differently: start over (a started stage is one with a log)
         if task.stage_dir.exists():
@@ -390,6 +430,7 @@ def run_challenge(
         if not done:
             return {}
         summary = summarize(challenge, budget, done, out_dir, {key: markers[key] for key in keys if key in markers})
+        summary = keep_earlier(summary, earlier, keys)
         if done != summarized:
             (out_dir / SUMMARY).write_text(json.dumps(summary, indent=1))
             summarized[:] = done
@@ -420,9 +461,9 @@ def run_challenge(
                 f"their {STAGE_LOG} and {STAGE_COMMAND} in {shown}/seed_<k>/<stage>/"
             )
         if backend == "ray":
-            run_ray(tasks, ray_address, on_start, on_finish, display.tick)
+            run_ray(tasks, ray_address, on_start, on_finish, display.tick, display.failed, keep_going)
         else:
-            run_local(tasks, jobs, on_start, on_finish, display.tick)
+            run_local(tasks, jobs, on_start, on_finish, display.tick, display.failed, keep_going)
     summary = write_summary()
     if len(seeds) >= MIN_SEEDS:  # the rliable statistics (seconds of bootstrap), as ``pairs`` writes them
         summary["statistics"] = summary_statistics(summary, HER)
