@@ -6,6 +6,7 @@ critics (SB3's SAC, UDPO of sb3-pilot <= 0.2) load and resume; HER batches are S
 
 import copy
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -18,6 +19,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_pilot.common.buffers import LeanHerReplayBuffer
 from sb3_pilot.common.critics import EnsembleCritic
+from sb3_pilot.common.lean import LossRecorder
 from sb3_pilot.sac import LeanSAC
 from sb3_pilot.udpo import UDPO
 from tests.goal_envs import PointGoalEnv
@@ -182,3 +184,33 @@ def test_lean_sac_refuses_empty_buffers_batches_and_bad_coefficients(kwargs: dic
     """SB3 accepts buffer_size=0, fails on batch_size=0 at its first sample, trains on tau=1.5: LeanSAC refuses them."""
     with pytest.raises(ValueError, match=message):
         LeanSAC("MultiInputPolicy", PointGoalEnv(), **kwargs)
+
+
+class HugeRewardGoalEnv(PointGoalEnv):
+    """PointGoalEnv with rewards of -1e30: the critics' squared errors overflow float32 at the first gradient step."""
+
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any) -> np.ndarray:
+        return super().compute_reward(achieved_goal, desired_goal, info) * 1e30
+
+
+@pytest.mark.parametrize("algo", [LeanSAC, UDPO])
+def test_an_overflowing_loss_stops_training_at_once(algo: type[LeanSAC] | type[UDPO]) -> None:
+    """An infinite critic loss ends ``learn`` at the next record with the losses named, not NaN parameters later."""
+    model = algo("MultiInputPolicy", HugeRewardGoalEnv(), learning_starts=20, batch_size=16, seed=0)
+    with pytest.raises(FloatingPointError, match=r"Training diverged: train/critic_loss .* not finite \(.*ent_coef="):
+        model.learn(40)
+
+
+def test_loss_recorder_refuses_a_non_finite_mean() -> None:
+    """Every loss recorded when all are finite; NaN or inf named, and nothing recorded."""
+    logger = configure(None, [])
+    recorder = LossRecorder()
+    recorder.add("critic_loss", th.tensor(1.0))
+    recorder.add("actor_loss", th.tensor(-2.0))
+    recorder.record(logger)
+    assert logger.name_to_value == {"train/critic_loss": 1.0, "train/actor_loss": -2.0}
+    logger.dump()
+    recorder.add("ent_coef", th.tensor(float("nan")))
+    with pytest.raises(FloatingPointError, match=r"train/ent_coef over the last gradient steps is not finite"):
+        recorder.record(logger)
+    assert logger.name_to_value == {}

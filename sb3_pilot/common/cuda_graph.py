@@ -34,7 +34,7 @@ from stable_baselines3.common.type_aliases import DictReplayBufferSamples, Repla
 from stable_baselines3.common.vec_env import VecNormalize
 
 from sb3_pilot.common.buffers import LeanHerReplayBuffer
-from sb3_pilot.common.lean import LossRecorder
+from sb3_pilot.common.lean import LossRecorder, record_losses
 
 #: Eager gradient steps before each capture
 WARMUP_STEPS = 3
@@ -107,9 +107,8 @@ class LossAccumulator(LossRecorder):
         """Record the mean of each loss over the steps since the last record as ``train/<name>`` (one host read)."""
         if self.n_steps and self._sums:
             means = (th.stack(list(self._sums.values())) / self.n_steps).tolist()
-            for name, mean in zip(self._sums, means, strict=True):
-                logger.record(f"train/{name}", mean)
             th._foreach_zero_(list(self._sums.values()))
+            record_losses(logger, dict(zip(self._sums, means, strict=True)))
         self.n_steps = 0
 
 

@@ -5,6 +5,7 @@ with the critics as one ensemble, fused Adam, one ``foreach`` target update, the
 losses and same numbers as SB3's ``SAC.train`` (up to float rounding), fewer kernels and host reads per gradient step.
 """
 
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -100,8 +101,28 @@ class LossRecorder:
         """Record the mean of each loss over the steps as ``train/<name>``."""
         if self._values:
             means = th.stack([th.stack(values).mean() for values in self._values.values()]).tolist()
-            for name, mean in zip(self._values, means, strict=True):
-                logger.record(f"train/{name}", mean)
+            record_losses(logger, dict(zip(self._values, means, strict=True)))
+
+
+def record_losses(logger: Logger, means: dict[str, float]) -> None:
+    """
+    Record losses as ``train/<name>``, refusing non-finite ones: a loss that overflowed (the critics' first, when the
+    temperature runs away) leaves NaN parameters a few thousand steps later, and training on from there is wasted.
+
+    :param logger: the algorithm's logger
+    :param means: the mean of each loss over the gradient steps since the last record
+    :raise FloatingPointError: where a mean is infinite or NaN (the message holds every mean)
+    """
+    diverged = [name for name, mean in means.items() if not math.isfinite(mean)]
+    if diverged:
+        values = ", ".join(f"train/{name}={mean:.3g}" for name, mean in means.items())
+        raise FloatingPointError(
+            f"Training diverged: {', '.join(f'train/{name}' for name in diverged)} over the last gradient steps is not "
+            f"finite ({values}). A runaway temperature (train/ent_coef growing by orders of magnitude in the log) is a "
+            "common cause: try a lower initial temperature (ent_coef='auto_0.1') or a lower learning rate."
+        )
+    for name, mean in means.items():
+        logger.record(f"train/{name}", mean)
 
 
 def q_values(critic: BaseModel, observations: PyTorchObs, actions: th.Tensor) -> th.Tensor:

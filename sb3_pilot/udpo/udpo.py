@@ -27,7 +27,7 @@ from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
 from torch.nn import functional as F
 
 from sb3_pilot.common.cuda_graph import CudaGraphUpdate
-from sb3_pilot.common.lean import LeanSACSteps, LossRecorder, check_update_settings
+from sb3_pilot.common.lean import LeanSACSteps, LossRecorder, check_update_settings, record_losses
 from sb3_pilot.common.utils import check_number
 from sb3_pilot.udpo.policies import (
     ENTROPY_TERMS,
@@ -416,7 +416,7 @@ class UDPO(LeanSACSteps, OffPolicyAlgorithm):
             self.inverse_dynamics.optimizer.step()
             losses[step] = loss.detach()
         mean_loss = losses.mean().item()
-        self.logger.record("train/inverse_dynamics_loss", mean_loss)
+        record_losses(self.logger, {"inverse_dynamics_loss": mean_loss})
         return mean_loss
 
     def _store_transition(
