@@ -302,3 +302,23 @@ def test_a_run_of_some_stages_keeps_the_others_recorded(tmp_path: Path, importab
     again = run_challenge(challenge, seeds=[0, 1], root=tmp_path)
     assert not list(run_dir.glob("models/seed_*/*"))  # nothing trained again
     assert again["methods"] == whole["methods"] and "partial_runs" not in again
+
+
+def test_a_dry_run_shows_what_would_run_and_runs_nothing(
+    tmp_path: Path, importable: None, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--dry-run`` lists the finished stages and those to run, writes nothing, and a later run does what it said."""
+    challenge = tiny(Sleep("source", 0.0), Sleep("target", 0.0, needs=("source",)))
+    monkeypatch.setitem(CHALLENGES, "tiny", challenge)
+    challenges_main(["tiny", "--root", str(tmp_path), "--dry-run"])
+    assert not (tmp_path / "tiny").exists()
+    out = capsys.readouterr().out
+    assert out.startswith("tiny (smoke budget, seeds [0]): 2 stages to run, 0 finished\n")
+    assert "  run   seed 0 source: sleep 0.0 s\n  run   seed 0 target: sleep 0.0 s" in out
+    run_challenge(challenge, seeds=[0], root=tmp_path)
+    capsys.readouterr()
+    plan = run_challenge(challenge, seeds=[0, 1], root=tmp_path, dry_run=True)
+    assert plan == {"to_run": ["seed_1/source", "seed_1/target"], "finished": ["seed_0/source", "seed_0/target"]}
+    out = capsys.readouterr().out
+    assert "  done  seed 0 source (" in out and "  run   seed 1 target: sleep 0.0 s" in out
+    assert not (tmp_path / "tiny" / "models" / "seed_1").exists()

@@ -1,7 +1,7 @@
 """
 ``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N [--root runs] [--plot]
 [--jobs N | --backend ray [--ray-address ADDR]] [--threads T] [--keep-going] [--reuse-shipped] [--stages NAME ...]
-[--no-progress]``.
+[--no-progress] [--dry-run]``.
 
 On a terminal it shows a live table of the running stages (env steps, elapsed, ETA); otherwise plain lines. Each
 stage's output goes to ``stage.log`` in its folder, a zoo stage's command line to ``command.txt``.
@@ -59,6 +59,11 @@ def main(argv: list[str] | None = None) -> None:
         "it no stage starts after a failure. Either way the running stages finish and are recorded",
     )
     parser.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="print the stages that would run (with their command lines) and those finished, and stop",
+    )
+    parser.add_argument(
         "--reuse-shipped",
         action="store_true",
         help=f"evaluate the models shipped in the repository instead of training them ({', '.join(REUSE_SHIPPED)}): "
@@ -102,10 +107,11 @@ def main(argv: list[str] | None = None) -> None:
                 ray_address=args.ray_address,
                 threads=args.threads,
                 keep_going=args.keep_going,
+                dry_run=args.dry_run,
             )
         except (StageFailed, ShippedFileMissing) as error:
             sys.exit(f"{challenge.name}: {error}")
-        if args.plot:
+        if args.plot and not args.dry_run:
             from sb3_pilot.experiments.plots import plot_challenge
 
             plot_challenge(f"{args.root}/{challenge.name}")

@@ -364,6 +364,7 @@ def run_challenge(
     ray_address: str | None = None,
     threads: int = 1,
     keep_going: bool = False,
+    dry_run: bool = False,
 ) -> dict[str, Any]:
     """
     Run (or resume) a challenge: every stage for every seed, each in a process of its own (its output in
@@ -386,7 +387,9 @@ def run_challenge(
     :param threads: torch threads of each stage's process (the CPUs a Ray task declares)
     :param keep_going: after a stage fails, go on with the stages that do not read from it (other seeds' stages,
         baselines); otherwise no stage starts after a failure. Either way the stages running finish and are recorded.
-    :return: the summary
+    :param dry_run: print what would run (each stage's command) and what is finished (:func:`format_plan`), and
+        return without running or writing anything
+    :return: the summary; with ``dry_run``, ``to_run`` and ``finished``, the stages' keys
     :raise StageFailed: once the stages running have finished, when a stage failed (its name and its log's tail)
     """
     if isinstance(name, Challenge):
@@ -414,6 +417,9 @@ def run_challenge(
     ctx_kwargs = {"budget": budget, "steps": stage_steps, "fast_hyperparams": fast, "verbose": verbose, "threads": threads}
     earlier = read_record(out_dir)  # what this run does not cover (other stages or seeds) stays recorded
     tasks, markers = plan(challenge, seeds, out_dir, ctx_kwargs)
+    if dry_run:
+        print(format_plan(f"{challenge.name} ({budget.name} budget, seeds {seeds})", tasks, markers))
+        return {"to_run": [task.key for task in tasks], "finished": list(markers)}
     for task in tasks:  # interrupted, or configured differently: start over (a started stage is one with a log)
         if task.stage_dir.exists():
             shutil.rmtree(task.stage_dir)
@@ -471,6 +477,26 @@ def run_challenge(
     display.print("done")
     print(format_table(summary))
     return summary
+
+
+def format_plan(title: str, tasks: Sequence[StageTask], finished: dict[str, dict[str, Any]]) -> str:
+    """
+    What a run would do (``--dry-run``): the stages finished (recorded in ``summary.json`` where their models are
+    gone), then those to run, each with what it does and, for a zoo stage, its command line.
+
+    :param title: the first line's start
+    :param tasks: the stages to run (:func:`plan`)
+    :param finished: the markers of the finished stages (:func:`plan`)
+    """
+    lines = [f"{title}: {len(tasks)} stage{'s' * (len(tasks) != 1)} to run, {len(finished)} finished"]
+    for key, marker in finished.items():
+        where = "; recorded in summary.json, its models gone" if marker.get("from_summary") else ""
+        lines.append(f"  done  {stage_name(key)} ({marker['wall_time_s']:.0f} s{where})")
+    for task in tasks:
+        lines.append(f"  run   {stage_name(task.key)}: {task.stage.describe(task.ctx, task.stage_dir)}")
+        if isinstance(task.stage, ZooTrain):
+            lines.append(f"        {task.stage.command(task.ctx, task.stage_dir)}")
+    return "\n".join(lines)
 
 
 def format_table(summary: dict[str, Any]) -> str:
