@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas
 import pytest
 import torch as th
 from stable_baselines3 import SAC, HerReplayBuffer
@@ -17,6 +18,7 @@ from stable_baselines3.common.policies import ContinuousCritic
 from stable_baselines3.common.torch_layers import FlattenExtractor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+from benchmarks.temperature_runaway import entropy as recovered_entropy
 from sb3_pilot.common.buffers import LeanHerReplayBuffer
 from sb3_pilot.common.critics import EnsembleCritic
 from sb3_pilot.common.lean import LossRecorder
@@ -214,3 +216,26 @@ def test_loss_recorder_refuses_a_non_finite_mean() -> None:
     with pytest.raises(FloatingPointError, match=r"train/ent_coef over the last gradient steps is not finite"):
         recorder.record(logger)
     assert logger.name_to_value == {}
+
+
+@pytest.mark.parametrize("algo", [LeanSAC, UDPO])
+def test_the_policy_entropy_estimate_is_logged(algo: type[LeanSAC] | type[UDPO]) -> None:
+    """``train/entropy`` is the ``-mean log pi`` the temperature's loss reads: loss = -log(alpha) (target - entropy)."""
+    model = algo("MultiInputPolicy", PointGoalEnv(), learning_starts=50, batch_size=16, seed=0)
+    model.learn(60)
+    model.set_logger(configure(None, []))
+    model.train(gradient_steps=1, batch_size=16)
+    values = model.logger.name_to_value
+    expected = -np.log(values["train/ent_coef"]) * (model.target_entropy - values["train/entropy"])
+    assert values["train/ent_coef_loss"] == pytest.approx(expected, rel=1e-4, abs=1e-6)
+
+
+def test_the_entropy_is_recovered_from_older_logs() -> None:
+    """``benchmarks.temperature_runaway`` reads ``-mean log pi`` back from the temperature's loss where no
+    ``train/entropy`` was logged (undefined at a temperature of 1)."""
+    alpha, entropy = np.array([0.5, 2.0, 1.0]), np.array([0.3, -0.7, 0.1])
+    frame = pandas.DataFrame({"train/ent_coef": alpha, "train/ent_coef_loss": -np.log(alpha) * (-1.0 - entropy)})
+    recovered = recovered_entropy(frame, target_entropy=-1.0).to_numpy()
+    np.testing.assert_allclose(recovered[:2], entropy[:2])
+    assert np.isnan(recovered[2])
+    assert recovered_entropy(frame.assign(**{"train/entropy": entropy}), -1.0).tolist() == entropy.tolist()

@@ -118,8 +118,9 @@ def record_losses(logger: Logger, means: dict[str, float]) -> None:
         values = ", ".join(f"train/{name}={mean:.3g}" for name, mean in means.items())
         raise FloatingPointError(
             f"Training diverged: {', '.join(f'train/{name}' for name in diverged)} over the last gradient steps is not "
-            f"finite ({values}). A runaway temperature (train/ent_coef growing by orders of magnitude in the log) is a "
-            "common cause: try a lower initial temperature (ent_coef='auto_0.1') or a lower learning rate."
+            f"finite ({values}). A runaway temperature is a common cause (in the log, train/ent_coef growing by orders "
+            "of magnitude while train/entropy stays under the target entropy): try a lower initial temperature "
+            "(ent_coef='auto_0.1') or a lower learning rate."
         )
     for name, mean in means.items():
         logger.record(f"train/{name}", mean)
@@ -176,9 +177,11 @@ class LeanSACSteps:
         SAC's temperature step: loss ``-log(alpha) (log pi(a|s) + target_entropy)`` on the policy's log-probabilities.
 
         :param log_prob: ``log pi(a | s)`` of the sampled actions, shape ``(batch, 1)``
-        :param losses: where the loss and ``alpha`` are logged
+        :param losses: where the loss, ``alpha`` and the policy's entropy estimate ``-mean log pi(a|s)`` (``entropy``,
+            which the temperature drives to ``target_entropy``) are logged
         :return: ``alpha`` of this gradient step (before the temperature's update, as in SAC), detached
         """
+        losses.add("entropy", -log_prob.detach().mean())
         if self.ent_coef_optimizer is None or self.log_ent_coef is None:
             ent_coef = self.ent_coef_tensor
         else:
