@@ -37,7 +37,8 @@ class Sleep:
     """
     A tiny stage: writes its pid, prints ``lines`` lines, sleeps, and writes when it ran and with how many threads.
 
-    :param wait_for: a stage of the same seed whose pid file it waits for before failing or sleeping
+    :param wait_for: a stage of the same seed whose pid file it waits for before failing or sleeping (the pid is
+        written first, so two stages may wait for each other)
     :param fail: raise instead of sleeping
     """
 
@@ -211,7 +212,7 @@ def test_failed_stage_ends_the_run_once_the_running_ones_finish(
     is recorded); no stage starts after the failure, or with ``--keep-going`` those that do not read from it.
     """
     challenge = tiny(
-        Sleep("slow", 3.0),
+        Sleep("slow", 3.0, wait_for="boom"),
         Sleep("boom", 0.0, wait_for="slow", fail=True, lines=40),
         Sleep("later", 0.0),
         Sleep("after", 0.0, needs=("boom",)),
@@ -232,20 +233,28 @@ def test_failed_stage_ends_the_run_once_the_running_ones_finish(
 
 
 def test_an_interrupt_stops_the_running_stages(tmp_path: Path, importable: None) -> None:
-    """Ctrl-C (here a KeyboardInterrupt raised by a timer) stops the running stage: no process is left behind."""
+    """
+    Ctrl-C (here a KeyboardInterrupt raised by a timer once the stage's process runs) stops the running stage: no
+    process is left behind.
+    """
+    stage_dir = tmp_path / "tiny" / "models" / "seed_0" / "slow"
 
     def interrupt(signum: int, frame: object) -> None:
+        if not (stage_dir / "pid").exists():  # still starting (slow on a loaded machine): look again soon
+            signal.setitimer(signal.ITIMER_REAL, 0.5)
+            return
         raise KeyboardInterrupt
 
     previous = signal.signal(signal.SIGALRM, interrupt)
-    signal.setitimer(signal.ITIMER_REAL, 8.0)
+    signal.setitimer(signal.ITIMER_REAL, 1.0)
+    start = time.monotonic()
     try:
         with pytest.raises(KeyboardInterrupt):
             run_challenge(tiny(Sleep("slow", 300.0)), seeds=[0], root=tmp_path)
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0.0)
         signal.signal(signal.SIGALRM, previous)
-    stage_dir = tmp_path / "tiny" / "models" / "seed_0" / "slow"
+    assert time.monotonic() - start < 200
     assert _dead(int((stage_dir / "pid").read_text())) and not (stage_dir / STAGE_MARKER).exists()
 
 
@@ -271,7 +280,9 @@ def test_ray_backend_matches_serial(tmp_path: Path, importable: None, capsys: py
         assert _summary_without_times(tmp_path / "ray" / "high-dim-action" / "summary.json") == expected
 
         challenge = tiny(
-            Sleep("slow", 3.0), Sleep("boom", 0.0, wait_for="slow", fail=True, lines=40), Sleep("after", 0.0, needs=("boom",))
+            Sleep("slow", 3.0, wait_for="boom"),
+            Sleep("boom", 0.0, wait_for="slow", fail=True, lines=40),
+            Sleep("after", 0.0, needs=("boom",)),
         )
         match = r"Stage seed_0/boom failed \(exit status 1 on .*; not run: seed_0/after\)"
         with pytest.raises(StageFailed, match=match) as error_info:
