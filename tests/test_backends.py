@@ -333,3 +333,6 @@ def test_a_dry_run_shows_what_would_run_and_runs_nothing(
     out = capsys.readouterr().out
     assert "  done  seed 0 source (" in out and "  run   seed 1 target: sleep 0.0 s" in out
     assert not (tmp_path / "tiny" / "models" / "seed_1").exists()
+    challenges_main(["tiny", "--root", str(tmp_path), "--seeds", "1-2", "--dry-run"])  # named seeds, not a count
+    out = capsys.readouterr().out
+    assert out.startswith("tiny (smoke budget, seeds [1, 2]): 4 stages to run, 0 finished\n") and "seed 0" not in out

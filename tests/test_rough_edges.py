@@ -25,7 +25,17 @@ def test_challenge_with_no_seeds_is_refused(tmp_path: Path, capsys: pytest.Captu
     """``--seeds 0`` (read as "seed 0") used to run nothing and end in ``KeyError: 'challenge'`` on an empty summary."""
     with pytest.raises(SystemExit):
         challenges_main(["high-dim-action", "--seeds", "0", "--root", str(tmp_path)])
-    assert "--seeds is the number of seeds" in capsys.readouterr().err
+    assert "a count of seeds is at least 1" in capsys.readouterr().err
+    for bad, message in [
+        ("3-1", "goes down"),
+        ("1,1", "twice"),
+        ("0-2,2", "twice"),
+        ("a", "takes a count"),
+        ("-1", "takes a count"),
+    ]:
+        with pytest.raises(SystemExit):
+            challenges_main(["high-dim-action", "--seeds", bad, "--root", str(tmp_path)])
+        assert message in capsys.readouterr().err
     with pytest.raises(ValueError, match="seeds is empty"):
         run_challenge("high-dim-action", seeds=[], root=tmp_path)
     with pytest.raises(ValueError, match="repeated"):

@@ -1,7 +1,11 @@
 """
-``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N [--root runs] [--plot]
+``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N|A-B|A,B,... [--root runs]
+[--plot]
 [--jobs N | --backend ray [--ray-address ADDR]] [--threads T] [--keep-going] [--reuse-shipped] [--stages NAME ...]
 [--no-progress] [--dry-run]``.
+
+``--seeds 6`` runs seeds 0 .. 5; ``--seeds 3-5`` or ``--seeds 3,4,5`` those seeds alone (the others' records stay in
+``summary.json``, and a later ``--seeds 6`` summarizes them all).
 
 On a terminal it shows a live table of the running stages (env steps, elapsed, ETA); otherwise plain lines. Each
 stage's output goes to ``stage.log`` in its folder, a zoo stage's command line to ``command.txt``.
@@ -19,6 +23,35 @@ from sb3_pilot.experiments.challenges.runner import run_challenge
 from sb3_pilot.experiments.challenges.stages import ShippedFileMissing
 
 
+def parse_seeds(text: str) -> list[int]:
+    """
+    The seeds of ``--seeds``: a count ``N`` (seeds 0 .. N-1), or seeds named by ranges and commas (``3-5``, ``0,2``,
+    ``0-2,5``).
+
+    :param text: the argument
+    :return: the seeds, in the order given
+    :raise argparse.ArgumentTypeError: for anything else, a count below 1, a range going down or a repeated seed
+    """
+    if text.isdigit() and "," not in text:
+        if int(text) < 1:
+            raise argparse.ArgumentTypeError(f"a count of seeds is at least 1 (--seeds 1 runs seed 0), got {text!r}")
+        return list(range(int(text)))
+    seeds: list[int] = []
+    for part in text.split(","):
+        first, dash, last = part.partition("-")
+        if not first.isdigit() or (dash and not last.isdigit()):
+            raise argparse.ArgumentTypeError(
+                f"--seeds takes a count (6: seeds 0 .. 5) or seeds as ranges and commas (3-5, 0,2), got {text!r}"
+            )
+        low, high = int(first), int(last) if dash else int(first)
+        if high < low:
+            raise argparse.ArgumentTypeError(f"the seed range {part!r} goes down: write {high}-{low}")
+        seeds.extend(range(low, high + 1))
+    if len(set(seeds)) != len(seeds):
+        raise argparse.ArgumentTypeError(f"--seeds {text!r} names a seed twice")
+    return seeds
+
+
 def main(argv: list[str] | None = None) -> None:
     """Parse the command line and run the challenge(s)."""
     parser = argparse.ArgumentParser(
@@ -30,7 +63,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("challenge", choices=[*CHALLENGES, "all"])
     parser.add_argument("--budget", choices=list(BUDGETS), default="smoke")
     parser.add_argument(
-        "--seeds", type=int, default=1, help="number of seeds: N runs seeds 0 .. N-1 (--seeds 1 is seed 0 alone)"
+        "--seeds",
+        type=parse_seeds,
+        default=[0],
+        help="the seeds: a count N runs seeds 0 .. N-1 (--seeds 1 is seed 0 alone); 3-5 or 3,4,5 runs those seeds",
     )
     parser.add_argument("--root", default="runs", help="output root: writes ROOT/CHALLENGE/")
     parser.add_argument("--plot", action="store_true", help="render the PNGs afterwards (sb3_pilot.experiments.plots)")
@@ -78,8 +114,6 @@ def main(argv: list[str] | None = None) -> None:
         "summary.json keeps its records of the other stages",
     )
     args = parser.parse_args(argv)
-    if args.seeds < 1:
-        parser.error(f"--seeds is the number of seeds (0 .. N-1), at least 1, got {args.seeds}: --seeds 1 runs seed 0")
     if args.backend == "ray" and args.jobs != 1:
         parser.error("--jobs is for the local backend: Ray runs as many stages at once as the cluster has CPUs")
     # SIGTERM ends the run as Ctrl-C does: the running stages are stopped (Ray tasks cancelled), none is left behind
@@ -98,7 +132,7 @@ def main(argv: list[str] | None = None) -> None:
             run_challenge(
                 challenge,
                 args.budget,
-                seeds=range(args.seeds),
+                seeds=args.seeds,
                 root=args.root,
                 progress=False if args.no_progress else None,
                 verbose=args.verbose,
