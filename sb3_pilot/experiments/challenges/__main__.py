@@ -66,7 +66,8 @@ def main(argv: list[str] | None = None) -> None:
         "--seeds",
         type=parse_seeds,
         default=[0],
-        help="the seeds: a count N runs seeds 0 .. N-1 (--seeds 1 is seed 0 alone); 3-5 or 3,4,5 runs those seeds",
+        help="the seeds: a count N runs seeds 0 .. N-1 (--seeds 1 is seed 0 alone); 3-5 or 3,4,5 runs those seeds "
+        "(4-4: seed 4 alone)",
     )
     parser.add_argument("--root", default="runs", help="output root: writes ROOT/CHALLENGE/")
     parser.add_argument("--plot", action="store_true", help="render the PNGs afterwards (sb3_pilot.experiments.plots)")
