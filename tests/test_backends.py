@@ -9,6 +9,7 @@ from __future__ import annotations
 import itertools
 import json
 import os
+import shutil
 import signal
 import time
 from dataclasses import dataclass
@@ -90,6 +91,17 @@ class Scored(Sleep):
 
     def distances(self, stage_dir: Path) -> None:
         return None
+
+
+@dataclass(frozen=True)
+class Meanwhile(Scored):
+    """A :class:`Scored` stage while which another runner of the same folder records its seeds: it puts the folder's
+    ``other.json`` in place of its ``summary.json``."""
+
+    def run(self, ctx: Any, stage_dir: Path) -> None:
+        out_dir = ctx.seed_dir.parents[1]
+        shutil.copy(out_dir / "other.json", out_dir / "summary.json")
+        super().run(ctx, stage_dir)
 
 
 def tiny(*stages: Sleep) -> Challenge:
@@ -313,6 +325,26 @@ def test_a_run_of_some_stages_keeps_the_others_recorded(tmp_path: Path, importab
     again = run_challenge(challenge, seeds=[0, 1], root=tmp_path)
     assert not list(run_dir.glob("models/seed_*/*"))  # nothing trained again
     assert again["methods"] == whole["methods"] and "partial_runs" not in again
+
+
+def test_runners_on_other_seeds_of_one_folder_keep_each_others_records(tmp_path: Path, importable: None) -> None:
+    """
+    Two runners on one folder, on other seeds (``--seeds 0`` beside ``--seeds 1``): the one that ends last keeps what
+    the other recorded while it ran (it reads the record again before each write), so that a fresh clone trains
+    neither seed again.
+    """
+    first = run_challenge(tiny(Scored("a", 0.0, method="a")), seeds=[0], root=tmp_path)
+    run_dir = tmp_path / "tiny"
+    (run_dir / "summary.json").rename(run_dir / "other.json")  # seed 0's record, written meanwhile below
+    second = run_challenge(tiny(Meanwhile("a", 0.0, method="a")), seeds=[1], root=tmp_path)
+    assert [run["seed"] for run in second["methods"]["a"]["runs"]] == [1]
+    assert second["partial_runs"] == {"seed_0/a": first["methods"]["a"]["runs"][0]}
+    assert set(second["stages"]) == {"seed_0/a", "seed_1/a"}
+    shutil.rmtree(run_dir / "models")  # a fresh clone
+    both = run_challenge(tiny(Scored("a", 0.0, method="a")), seeds=[0, 1], root=tmp_path)
+    assert not (run_dir / "models").exists()  # nothing trained again
+    assert both["methods"]["a"]["runs"] == [first["methods"]["a"]["runs"][0], second["methods"]["a"]["runs"][0]]
+    assert sorted(path.name for path in run_dir.iterdir()) == ["other.json", "summary.json"]  # no temporary file left
 
 
 def test_a_dry_run_shows_what_would_run_and_runs_nothing(

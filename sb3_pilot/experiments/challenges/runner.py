@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import sys
 from collections.abc import Sequence
@@ -269,6 +270,19 @@ def read_record(out_dir: Path) -> dict[str, Any]:
     return json.loads(path.read_text()) if path.exists() else {"methods": {}, "stages": {}}
 
 
+def write_record(out_dir: Path, summary: dict[str, Any]) -> None:
+    """
+    Write a challenge's ``summary.json`` whole or not at all (a temporary file renamed over it), so that another
+    runner on the same folder never reads half of it.
+
+    :param out_dir: ``<root>/<challenge>``
+    :param summary: the summary
+    """
+    temporary = out_dir / f".{SUMMARY}.{os.getpid()}"
+    temporary.write_text(json.dumps(summary, indent=1))
+    os.replace(temporary, out_dir / SUMMARY)
+
+
 def recorded_runs(record: dict[str, Any]) -> dict[str, dict[str, Any]]:
     """
     The runs a summary records, by ``seed_<k>/<stage>``: its methods', its trained source's own learning and its
@@ -291,7 +305,7 @@ def keep_earlier(summary: dict[str, Any], record: dict[str, Any], keys: Sequence
     finds them finished where their hashes still match, instead of training them again.
 
     :param summary: the run's summary (:func:`summarize`)
-    :param record: the ``summary.json`` the run started from (:func:`read_record`)
+    :param record: the ``summary.json`` on disk (:func:`read_record`, read before each write)
     :param keys: the run's stages, ``seed_<k>/<stage>``
     :return: the summary, with the earlier records of the other stages
     """
@@ -415,7 +429,6 @@ def run_challenge(
     fast = challenge.fast_hyperparams if budget.fast else {}
     th.set_num_threads(1)  # this process only waits for the stages' processes
     ctx_kwargs = {"budget": budget, "steps": stage_steps, "fast_hyperparams": fast, "verbose": verbose, "threads": threads}
-    earlier = read_record(out_dir)  # what this run does not cover (other stages or seeds) stays recorded
     tasks, markers = plan(challenge, seeds, out_dir, ctx_kwargs)
     if dry_run:
         print(format_plan(f"{challenge.name} ({budget.name} budget, seeds {seeds})", tasks, markers))
@@ -436,9 +449,11 @@ def run_challenge(
         if not done:
             return {}
         summary = summarize(challenge, budget, done, out_dir, {key: markers[key] for key in keys if key in markers})
-        summary = keep_earlier(summary, earlier, keys)
+        # what this run does not cover (other stages or seeds) stays recorded, read now: another runner on other
+        # seeds of the same folder (--seeds 3-5 beside --seeds 0-2) may have recorded its stages since this one began
+        summary = keep_earlier(summary, read_record(out_dir), keys)
         if done != summarized:
-            (out_dir / SUMMARY).write_text(json.dumps(summary, indent=1))
+            write_record(out_dir, summary)
             summarized[:] = done
         return summary
 
@@ -473,7 +488,7 @@ def run_challenge(
     summary = write_summary()
     if len(seeds) >= MIN_SEEDS:  # the rliable statistics (seconds of bootstrap), as ``pairs`` writes them
         summary["statistics"] = summary_statistics(summary, HER)
-    (out_dir / SUMMARY).write_text(json.dumps(summary, indent=1))
+    write_record(out_dir, summary)
     display.print("done")
     print(format_table(summary))
     return summary
