@@ -95,8 +95,8 @@ class Scored(Sleep):
 
 @dataclass(frozen=True)
 class Meanwhile(Scored):
-    """A :class:`Scored` stage while which another runner of the same folder records its seeds: it puts the folder's
-    ``other.json`` in place of its ``summary.json``."""
+    """A :class:`Scored` stage during which another runner of the same folder records its seeds: it puts the
+    folder's ``other.json`` in place of its ``summary.json``."""
 
     def run(self, ctx: Any, stage_dir: Path) -> None:
         out_dir = ctx.seed_dir.parents[1]

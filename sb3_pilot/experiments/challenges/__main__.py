@@ -1,8 +1,7 @@
 """
-``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N|A-B|A,B,... [--root runs]
-[--plot]
-[--jobs N | --backend ray [--ray-address ADDR]] [--threads T] [--keep-going] [--reuse-shipped] [--stages NAME ...]
-[--no-progress] [--dry-run]``.
+``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N|A-B|A,B,...
+[--root runs] [--plot] [--jobs N | --backend ray [--ray-address ADDR]] [--threads T] [--keep-going]
+[--reuse-shipped] [--stages NAME ...] [--no-progress] [--dry-run]``.
 
 ``--seeds 6`` runs seeds 0 .. 5; ``--seeds 3-5`` or ``--seeds 3,4,5`` those seeds alone (the others' records stay in
 ``summary.json``, and a later ``--seeds 6`` summarizes them all).
@@ -32,7 +31,7 @@ def parse_seeds(text: str) -> list[int]:
     :return: the seeds, in the order given
     :raise argparse.ArgumentTypeError: for anything else, a count below 1, a range going down or a repeated seed
     """
-    if text.isdigit() and "," not in text:
+    if text.isdigit():
         if int(text) < 1:
             raise argparse.ArgumentTypeError(f"a count of seeds is at least 1 (--seeds 1 runs seed 0), got {text!r}")
         return list(range(int(text)))
