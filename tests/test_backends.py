@@ -11,6 +11,7 @@ import json
 import os
 import shutil
 import signal
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +29,7 @@ from sb3_pilot.experiments.challenges import (
     stage_graph,
 )
 from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
+from sb3_pilot.experiments.challenges.runner import record_lock
 from sb3_pilot.experiments.challenges.stages import STAGE_LOG, STAGE_MARKER
 
 TESTS = Path(__file__).parent
@@ -345,6 +347,31 @@ def test_runners_on_other_seeds_of_one_folder_keep_each_others_records(tmp_path:
     assert not (run_dir / "models").exists()  # nothing trained again
     assert both["methods"]["a"]["runs"] == [first["methods"]["a"]["runs"][0], second["methods"]["a"]["runs"][0]]
     assert sorted(path.name for path in run_dir.iterdir()) == ["other.json", "summary.json"]  # no temporary file left
+
+
+def test_a_runner_waits_for_the_folders_lock_to_record(tmp_path: Path, importable: None) -> None:
+    """
+    While another runner holds the folder's lock (between its read of ``summary.json`` and its write), a runner whose
+    stage has finished waits to record it, and records it once the lock is released.
+    """
+    run_dir = tmp_path / "tiny"
+    run_dir.mkdir()
+    finished: list[dict[str, Any]] = []
+    with record_lock(run_dir):
+        runner = threading.Thread(
+            target=lambda: finished.append(run_challenge(tiny(Scored("a", 0.0, method="a")), seeds=[0], root=tmp_path))
+        )
+        runner.start()
+        marker = run_dir / "models" / "seed_0" / "a" / STAGE_MARKER
+        deadline = time.monotonic() + 60
+        while not marker.exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert marker.exists(), "the stage did not finish"
+        runner.join(timeout=1.0)
+        assert runner.is_alive() and not (run_dir / "summary.json").exists()  # waiting for the lock
+    runner.join(timeout=60)
+    assert not runner.is_alive() and [run["seed"] for run in finished[0]["methods"]["a"]["runs"]] == [0]
+    assert json.loads((run_dir / "summary.json").read_text())["methods"] == finished[0]["methods"]
 
 
 def test_a_dry_run_shows_what_would_run_and_runs_nothing(

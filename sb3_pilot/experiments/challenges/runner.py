@@ -6,12 +6,18 @@ import json
 import os
 import shutil
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch as th
+
+try:
+    import fcntl
+except ImportError:  # Windows: no advisory locks (side-by-side runners there rely on the read before each write)
+    fcntl = None  # type: ignore[assignment]
 
 from sb3_pilot.experiments.challenges.backends import BACKENDS, StageTask, run_local, run_ray
 from sb3_pilot.experiments.challenges.controller import ControllerEvaluation
@@ -270,6 +276,26 @@ def read_record(out_dir: Path) -> dict[str, Any]:
     return json.loads(path.read_text()) if path.exists() else {"methods": {}, "stages": {}}
 
 
+@contextmanager
+def record_lock(out_dir: Path) -> Iterator[None]:
+    """
+    Hold a challenge folder's lock (an advisory ``flock`` on the folder itself, so no lock file is left behind; none
+    on Windows) while reading ``summary.json`` and writing it back, so that another runner on the same folder cannot
+    write between this one's read and its write.
+
+    :param out_dir: ``<root>/<challenge>``, which exists
+    """
+    if fcntl is None:
+        yield
+        return
+    descriptor = os.open(out_dir, os.O_RDONLY)
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(descriptor)  # releases the lock
+
+
 def write_record(out_dir: Path, summary: dict[str, Any]) -> None:
     """
     Write a challenge's ``summary.json`` whole or not at all (a temporary file renamed over it), so that another
@@ -443,18 +469,26 @@ def run_challenge(
     live = sys.stdout.isatty() if progress is None else progress
     display = RunDisplay(f"{challenge.name} {budget.name}", len(keys), live=live)
 
+    def save(summary: dict[str, Any], write: bool = True) -> dict[str, Any]:
+        """
+        The summary with what this run does not cover (other stages or seeds) as recorded now, read and written
+        under the folder's lock: another runner on other seeds of the same folder (``--seeds 3-5`` beside
+        ``--seeds 0-2``) may have recorded its stages since this one began.
+        """
+        with record_lock(out_dir):
+            summary = keep_earlier(summary, read_record(out_dir), keys)
+            if write:
+                write_record(out_dir, summary)
+        return summary
+
     def write_summary() -> dict[str, Any]:
         """The summary of the seeds whose stages have all finished (all of them at the end)."""
         done = [seed for seed in seeds if all(key in markers for key in seed_keys[seed])]
         if not done:
             return {}
         summary = summarize(challenge, budget, done, out_dir, {key: markers[key] for key in keys if key in markers})
-        # what this run does not cover (other stages or seeds) stays recorded, read now: another runner on other
-        # seeds of the same folder (--seeds 3-5 beside --seeds 0-2) may have recorded its stages since this one began
-        summary = keep_earlier(summary, read_record(out_dir), keys)
-        if done != summarized:
-            write_record(out_dir, summary)
-            summarized[:] = done
+        summary = save(summary, write=done != summarized)
+        summarized[:] = done
         return summary
 
     def on_start(task: StageTask) -> None:
@@ -488,7 +522,7 @@ def run_challenge(
     summary = write_summary()
     if len(seeds) >= MIN_SEEDS:  # the rliable statistics (seconds of bootstrap), as ``pairs`` writes them
         summary["statistics"] = summary_statistics(summary, HER)
-    write_record(out_dir, summary)
+    summary = save(summary)  # the statistics took seconds: read again what another runner may have recorded
     display.print("done")
     print(format_table(summary))
     return summary
