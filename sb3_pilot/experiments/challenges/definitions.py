@@ -557,7 +557,7 @@ CHALLENGES: dict[str, Challenge] = {
                 ChooseCheckpoint("chosen", "controller", episodes=30),
                 # k = 3, measured on this challenge's seed-0 controller and planner (a planner distilled from the
                 # teacher's real steps, 0.42 a step): success k = 1 / 2 / 3 0.23 / 0.47 / 0.67 on seeds 0-2, k = 2 / 3
-                # / 4 0.63 / 0.63 / 0.30 on held-out seeds 3-5 (zoo_runs/zero-shot-ant-maze/README.md)
+                # / 4 0.63 / 0.63 / 0.30 on held-out seeds 3-5 (zoo_runs/zero-shot-ant-maze-earlier-presets/README.md)
                 ControllerEvaluation(
                     "pilot",
                     "chosen",
