@@ -587,6 +587,9 @@ CHALLENGES: dict[str, Challenge] = {
                     "her": 2100,
                     "mega": 2100,
                 },
+                # the controller stops at 350k of its YAML's 4.5e5: the step count whose checkpoint guided best when the
+                # recipe was made (hyperparams/cpu/ant_controller_upright.yml's header); training on to 450k was not a
+                # measured gain (zoo_runs/zero-shot-ant-maze/controller_450k)
                 "cpu": {"maze": 20_000, "controller": 350_000, "her": 350_000, "mega": 350_000},
             },
         ),
