@@ -16,6 +16,7 @@ import yaml
 from rl_zoo3.utils import StoreDict
 
 from benchmarks import image_localisation, image_probe, image_recipe
+from sb3_pilot.common.wrappers import ImageFrameStack
 from sb3_pilot.experiments.challenges.stages import load_zoo_model
 from sb3_pilot.experiments.statistics import iqm
 from sb3_pilot.sac import LeanSAC
@@ -226,11 +227,12 @@ def test_another_command_is_refused(tmp_path: Path, fake_zoo: Path) -> None:
 
 def test_goalnorm_goalpred_fast_run_trains_and_loads(tmp_path: Path) -> None:
     """
-    A real zoo run of goalnorm + goalpred + fast: its VecNormalize (goals only, over transposed frames) saves and loads,
-    the package's SAC trains the goal prediction, from the device-resident buffer (on CPU tensors here, the step eager).
+    A real zoo run of goalnorm + stack3 + goalpred + fast: its VecNormalize (goals only, over transposed stacked frames)
+    saves and loads, the package's SAC trains the goal prediction, from the device-resident buffer (on CPU tensors
+    here, the step eager).
     """
-    image_recipe.main(recipe(tmp_path, "--variants", "hidden+goalnorm+goalpred+fast", "--seeds", "0"))
-    run = tmp_path / "hidden+goalnorm+goalpred+fast" / "seed_0" / "lean_sac" / "Pilot-ReacherImage-v0_1"
+    image_recipe.main(recipe(tmp_path, "--variants", "hidden+goalnorm+stack3+goalpred+fast", "--seeds", "0"))
+    run = tmp_path / "hidden+goalnorm+stack3+goalpred+fast" / "seed_0" / "lean_sac" / "Pilot-ReacherImage-v0_1"
     log = (run.parents[1] / "train.log").read_text()
     assert "goal_prediction_loss" in log and "the eager gradient step is used" in log
     config = yaml.unsafe_load((run / "Pilot-ReacherImage-v0" / "config.yml").read_text())
@@ -238,7 +240,9 @@ def test_goalnorm_goalpred_fast_run_trains_and_loads(tmp_path: Path) -> None:
     model, vec_normalize = load_zoo_model(run / "Pilot-ReacherImage-v0.zip")
     assert isinstance(model, LeanSAC) and model.policy.goal_prediction == image_recipe.GOAL_PREDICTION
     assert vec_normalize is not None and vec_normalize.norm_obs_keys == ["achieved_goal", "desired_goal"]
-    env = gym.make(TASK, show_target=False)
+    # the statistics' env is rebuilt with the run's env_wrapper: 3 stacked frames, transposed
+    assert vec_normalize.observation_space["observation"].shape == (9, 64, 64)
+    env = ImageFrameStack(gym.make(TASK, show_target=False), n_frames=3)
     observation, _ = env.reset(seed=0)
     normalized = vec_normalize.normalize_obs(observation)
     assert np.array_equal(normalized["observation"], observation["observation"])  # the frame untouched

@@ -147,11 +147,21 @@ def vecnormalize_path(model_path: Path) -> Path:
 
 
 def _statistics_venv(model_path: Path) -> VecEnv:
-    """The run's task as the zoo wrapped it below its ``VecNormalize`` (with the run's ``vec_env_wrapper``, if any)."""
+    """
+    The run's task as the zoo wrapped it below its ``VecNormalize``: with the run's ``env_wrapper`` (e.g. a frame
+    stack, which changes the observation's shape) and ``vec_env_wrapper``, if any.
+    """
     from rl_zoo3.utils import get_wrapper_class
 
-    venv: VecEnv = DummyVecEnv([lambda: gym.make(zoo_env_id(model_path))])
-    wrapper = get_wrapper_class(zoo_saved(model_path, "config.yml"), "vec_env_wrapper")
+    config = zoo_saved(model_path, "config.yml")
+    env_wrapper = get_wrapper_class(config, "env_wrapper")
+
+    def make() -> gym.Env:
+        env = gym.make(zoo_env_id(model_path))
+        return env if env_wrapper is None else env_wrapper(env)
+
+    venv: VecEnv = DummyVecEnv([make])
+    wrapper = get_wrapper_class(config, "vec_env_wrapper")
     return venv if wrapper is None else wrapper(venv)
 
 
