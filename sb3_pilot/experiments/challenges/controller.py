@@ -30,11 +30,9 @@ from sb3_pilot.experiments.challenges.stages import (
     StageContext,
     load_zoo_model,
     play_episodes,
+    training_task,
     vecnormalize_path,
-    zoo_env_id,
-    zoo_env_kwargs,
 )
-from sb3_pilot.experiments.zoo import zoo_saved
 from sb3_pilot.transfer import LandmarkGuidance
 
 
@@ -249,22 +247,6 @@ def choose_checkpoint(scores: list[dict[str, Any]]) -> dict[str, Any]:
     if not scores:
         raise ValueError("No checkpoint to choose from.")
     return max(scores, key=lambda score: (score["success"], -score["final_distance"], -score["steps"]))
-
-
-def training_task(model_path: Path, max_episode_steps: int | None = None) -> gym.Env:
-    """
-    The task a zoo run trained on, rebuilt from its saved settings: its ID, ``env_kwargs`` and ``env_wrapper``.
-
-    :param model_path: the run's final model (its saved settings beside it)
-    :param max_episode_steps: episodes end after this many steps (None: the task's)
-    """
-    from rl_zoo3.utils import get_wrapper_class
-
-    hyperparams = zoo_saved(model_path, "config.yml")
-    kwargs = zoo_env_kwargs(model_path) | ({"max_episode_steps": max_episode_steps} if max_episode_steps else {})
-    env = gym.make(zoo_env_id(model_path), **kwargs)
-    wrapper = get_wrapper_class(hyperparams)
-    return env if wrapper is None else wrapper(env)
 
 
 @dataclass(frozen=True)

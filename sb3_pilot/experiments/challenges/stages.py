@@ -147,21 +147,12 @@ def vecnormalize_path(model_path: Path) -> Path:
 
 
 def _statistics_venv(model_path: Path) -> VecEnv:
-    """
-    The run's task as the zoo wrapped it below its ``VecNormalize``: with the run's ``env_wrapper`` (e.g. a frame
-    stack, which changes the observation's shape) and ``vec_env_wrapper``, if any.
-    """
+    """The run's task as the zoo wrapped it below its ``VecNormalize`` (:func:`training_task`, then the run's
+    ``vec_env_wrapper``, if any)."""
     from rl_zoo3.utils import get_wrapper_class
 
-    config = zoo_saved(model_path, "config.yml")
-    env_wrapper = get_wrapper_class(config, "env_wrapper")
-
-    def make() -> gym.Env:
-        env = gym.make(zoo_env_id(model_path))
-        return env if env_wrapper is None else env_wrapper(env)
-
-    venv: VecEnv = DummyVecEnv([make])
-    wrapper = get_wrapper_class(config, "vec_env_wrapper")
+    venv: VecEnv = DummyVecEnv([lambda: training_task(model_path)])
+    wrapper = get_wrapper_class(zoo_saved(model_path, "config.yml"), "vec_env_wrapper")
     return venv if wrapper is None else wrapper(venv)
 
 
@@ -424,6 +415,22 @@ class Distill:
 class ShippedFileMissing(FileNotFoundError):
     """A shipped file (a trained model or planner in the repository's ``zoo_runs/``) is not there: the package was
     installed without the repository."""
+
+
+def training_task(model_path: Path, max_episode_steps: int | None = None) -> gym.Env:
+    """
+    The task a zoo run trained on, rebuilt from its saved settings: its ID, ``env_kwargs`` and ``env_wrapper``.
+
+    :param model_path: the run's final model (its saved settings beside it)
+    :param max_episode_steps: episodes end after this many steps (None: the task's)
+    """
+    from rl_zoo3.utils import get_wrapper_class
+
+    hyperparams = zoo_saved(model_path, "config.yml")
+    kwargs = zoo_env_kwargs(model_path) | ({"max_episode_steps": max_episode_steps} if max_episode_steps else {})
+    env = gym.make(zoo_env_id(model_path), **kwargs)
+    wrapper = get_wrapper_class(hyperparams)
+    return env if wrapper is None else wrapper(env)
 
 
 def shipped_file(path: Path) -> Path:
