@@ -34,6 +34,9 @@ TABLE_1 = {
     "Pilot/Maze2D-v0": ((2,), np.float32, 2, 2, 1.0, 50),
     "Pilot/Maze2DCar-v0": ((4,), np.float32, 2, 2, 1.0, 50),  # beyond Table 1: the maze-car challenge's target
     "Pilot/AntMaze-v0": ((29,), np.float32, 8, 2, 1.0, 500),
+    # beyond Table 1: the two Ant tasks with the hierarchical-RL literature's Ant
+    "Pilot/AntLocomotion-v1": ((29,), np.float32, 8, 2, 0.1, 100),
+    "Pilot/AntMaze-v1": ((29,), np.float32, 8, 2, 1.0, 500),
     # beyond Table 1: the wall-maze-car challenge's source and target
     "Pilot/WallMaze2D-v0": ((2,), np.float32, 2, 2, 0.1, 30),
     "Pilot/WallMaze2DCar-v0": ((4,), np.float32, 2, 2, 0.1, 30),
@@ -284,8 +287,10 @@ def test_point_moves_along_its_heading():
     np.testing.assert_allclose(obs["achieved_goal"], [0.05 + 0.05 * np.cos(0.25), 0.05 * np.sin(0.25)], atol=1e-6)
 
 
-def test_ant_is_the_same_model_in_both_ant_tasks():
-    loco, maze = gym.make("Pilot/AntLocomotion-v0").unwrapped, gym.make("Pilot/AntMaze-v0").unwrapped
+@pytest.mark.parametrize(("version", "gear", "timestep"), [("v0", 150, 0.01), ("v1", 30, 0.02)])
+def test_ant_is_the_same_model_in_both_ant_tasks(version, gear, timestep):
+    loco = gym.make(f"Pilot/AntLocomotion-{version}").unwrapped
+    maze = gym.make(f"Pilot/AntMaze-{version}").unwrapped
     a, b = loco.model, maze.model
     assert (a.nq, a.nv, a.nu, a.nbody) == (b.nq, b.nv, b.nu, b.nbody) == (15, 14, 8, 14)
     for field in ("actuator_gear", "actuator_ctrlrange", "body_mass", "body_inertia", "jnt_range", "dof_damping"):
@@ -294,4 +299,47 @@ def test_ant_is_the_same_model_in_both_ant_tasks():
     ant_geoms = [a.geom(i).name for i in range(a.ngeom) if a.geom_bodyid[i] > 0]
     for name in ant_geoms:
         np.testing.assert_array_equal(a.geom(name).size, b.geom(name).size, err_msg=name)
-    assert np.all(a.actuator_gear[:, 0] == 150) and np.all(a.actuator_ctrlrange == [-1, 1])
+    assert np.all(a.actuator_gear[:, 0] == gear) and np.all(a.actuator_ctrlrange == [-1, 1])
+    assert a.opt.timestep == timestep and loco.frame_skip == 5
+
+
+def test_literature_ant_differs_from_gymnasiums_only_where_documented():
+    """ant_hrl.xml is gymnasium's ant.xml but for the timestep, the motors' torque and the default geom's contacts."""
+    from xml.etree import ElementTree
+
+    from sb3_pilot.envs.locomotion import ANT_XML_FILES
+
+    gymnasium_ant, hrl_ant = (ElementTree.parse(ANT_XML_FILES[name]).getroot() for name in ("gymnasium", "hrl"))
+    changed = {"option": {"timestep": "0.02"}, "motor": {"gear": "30"}}
+    changed["geom"] = {"solref": ".02 1", "solimp": ".8 .8 .01"}  # the default geom's only
+    elements = list(zip(gymnasium_ant.iter(), hrl_ant.iter(), strict=True))
+    for old, new in elements:
+        assert old.tag == new.tag
+        expected = dict(old.attrib)
+        if old.tag in changed and (old.tag != "geom" or "density" in old.attrib):
+            expected.update(changed[old.tag])
+        assert new.attrib == expected, (old.tag, old.attrib.get("name") or old.attrib.get("joint"))
+
+
+def test_literature_ant_rarely_flips_under_random_actions():
+    """Under the same uniform random actions, gymnasium's Ant ends up on its back, the literature's does not."""
+    from sb3_pilot.envs.locomotion import ant_up_z
+
+    def lowest_up_z(env_id: str) -> float:
+        env = gym.make(env_id, max_episode_steps=300)
+        env.reset(seed=0)
+        env.action_space.seed(0)
+        up_z = []
+        for _ in range(300):
+            env.step(env.action_space.sample())
+            up_z.append(ant_up_z(env.unwrapped.data.qpos))
+        return min(up_z)
+
+    assert lowest_up_z("Pilot/AntLocomotion-v0") < 0 < lowest_up_z("Pilot/AntLocomotion-v1")
+
+
+def test_ant_must_be_named():
+    with pytest.raises(ValueError, match="ant must be one of"):
+        gym.make("Pilot/AntLocomotion-v1", ant="hiro")
+    with pytest.raises(ValueError, match="ant must be one of"):
+        gym.make("Pilot/AntMaze-v0", ant="gym")

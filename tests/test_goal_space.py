@@ -39,8 +39,8 @@ def test_pilot_tasks_declare_their_goal_spaces() -> None:
         {"Pilot/FetchReach-v0", "Pilot/FetchReachHighDim-v0", "Pilot/FetchReachImage-v0"},
         {"Pilot/FetchPush-v0", "Pilot/FetchPushHighDim-v0"},
         {"Pilot/Reacher-v0", "Pilot/ReacherImage-v0"},
-        {"Pilot/PointLocomotion-v0", "Pilot/AntLocomotion-v0"},
-        {"Pilot/Maze2D-v0", "Pilot/Maze2DCar-v0", "Pilot/AntMaze-v0"},
+        {"Pilot/PointLocomotion-v0", "Pilot/AntLocomotion-v0", "Pilot/AntLocomotion-v1"},
+        {"Pilot/Maze2D-v0", "Pilot/Maze2DCar-v0", "Pilot/AntMaze-v0", "Pilot/AntMaze-v1"},
     ]
     assert [len({spaces[task] for task in group}) for group in groups] == [1] * len(groups)
     assert len({spaces[next(iter(group))] for group in groups}) == len(groups)

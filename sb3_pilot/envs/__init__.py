@@ -1,5 +1,6 @@
 """
-The tasks of the PILoT paper's Table 1 as Gymnasium environments (``Pilot/...-v0``).
+The tasks of the PILoT paper's Table 1 as Gymnasium environments (``Pilot/...-v0``), and ``-v1`` of the two Ant
+tasks: the same tasks with the hierarchical-RL literature's Ant (:data:`~sb3_pilot.envs.locomotion.ANT_XML_FILES`).
 
 :func:`register_envs` registers them with entry-point strings, so that MuJoCo is only imported when an
 environment is made. Every task returns a ``Dict`` observation (``observation``, ``achieved_goal``,
@@ -35,6 +36,9 @@ PILOT_ENV_SPECS: dict[str, tuple[str, dict[str, Any], int]] = {
     "Pilot/Maze2D-v0": ("sb3_pilot.envs.maze:Maze2DEnv", {}, 50),
     "Pilot/Maze2DCar-v0": ("sb3_pilot.envs.car:Maze2DCarEnv", {}, 50),
     "Pilot/AntMaze-v0": ("sb3_pilot.envs.maze:AntMazeEnv", {}, 500),
+    # the two Ant tasks with the hierarchical-RL literature's Ant (HIRO's, D4RL's antmaze): new dynamics, new version
+    "Pilot/AntLocomotion-v1": ("sb3_pilot.envs.locomotion:AntLocomotionEnv", {"ant": "hrl"}, 100),
+    "Pilot/AntMaze-v1": ("sb3_pilot.envs.maze:AntMazeEnv", {"ant": "hrl"}, 500),
     # beyond the paper: the walled maze, a point (a source) and a car (a target) in one square with a wall to go around
     "Pilot/WallMaze2D-v0": ("sb3_pilot.envs.wall_maze:WallMaze2DEnv", {}, 30),
     "Pilot/WallMaze2DCar-v0": ("sb3_pilot.envs.wall_maze:WallMaze2DCarEnv", {}, 30),
@@ -43,7 +47,7 @@ PILOT_ENV_IDS: tuple[str, ...] = tuple(PILOT_ENV_SPECS)
 
 
 def register_envs() -> None:
-    """Register every ``Pilot/...-v0`` task with Gymnasium (calling it again does nothing)."""
+    """Register every ``Pilot/...`` task with Gymnasium (calling it again does nothing)."""
     for env_id, (entry_point, kwargs, max_episode_steps) in PILOT_ENV_SPECS.items():
         if env_id not in gym.registry:
             gym.register(id=env_id, entry_point=entry_point, kwargs=kwargs, max_episode_steps=max_episode_steps)

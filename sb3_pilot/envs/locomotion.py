@@ -1,13 +1,19 @@
 """
-The locomotion tasks: ``Pilot/PointLocomotion-v0`` and ``Pilot/AntLocomotion-v0``.
+The locomotion tasks: ``Pilot/PointLocomotion-v0`` and ``Pilot/AntLocomotion-v0`` / ``-v1``.
 
 Both robots start at the origin of the same open ground, facing +x, and share one goal distribution
 (:func:`sample_locomotion_goal`): an xy uniform over the disk of radius ``LOCOMOTION_GOAL_RADIUS`` = 2
-around the start, which the Ant can reach in its 100-step (5 s) episode. Success within 0.1.
+around the start, which the Ant can reach in its 100-step episode. Success within 0.1.
+
+Two Ants (:data:`ANT_XML_FILES`): ``v0`` is gymnasium's (``ant.xml``: gear 150, control range [-1, 1], timestep
+0.01 s, a 0.05 s env step); ``v1`` is the hierarchical-RL literature's (``assets/ant_hrl.xml``, the Ant of HIRO, MEGA
+and D4RL's antmaze: up to 30 of torque a joint, a fifth of gymnasium's, timestep 0.02 s, a 0.1 s env step, softer
+contacts), which random actions rarely flip. Same bodies, observation (29), goal space and episode length.
 """
 
 from __future__ import annotations
 
+import inspect
 import os
 from typing import Any
 
@@ -32,6 +38,14 @@ ANT_KWARGS: dict[str, Any] = {
 }
 ANT_OBS_DIM = 29  # xy (2) + z, orientation, joint angles (13) + velocities (14)
 POINT_XML = os.path.join(os.path.dirname(__file__), "assets", "point.xml")
+#: The Ants by name (``ant`` of :class:`AntLocomotionEnv` and of :class:`~sb3_pilot.envs.maze.AntMazeEnv`): gymnasium's
+#: ``ant.xml`` (the ``-v0`` tasks) and the hierarchical-RL literature's ``assets/ant_hrl.xml`` (the ``-v1`` tasks)
+ANT_XML_FILES: dict[str, str] = {
+    "gymnasium": os.path.join(os.path.dirname(inspect.getfile(AntEnv)), "assets", "ant.xml"),
+    "hrl": os.path.join(os.path.dirname(__file__), "assets", "ant_hrl.xml"),
+}
+#: Env steps per second of each Ant (5 MuJoCo steps of 0.01 s, of 0.02 s), MuJoCo's check of ``render_fps``
+_ANT_RENDER_FPS: dict[str, int] = {"gymnasium": 20, "hrl": 10}
 _RENDER_MODES = ("human", "rgb_array")
 
 
@@ -115,18 +129,29 @@ def ant_up_z(qpos: np.ndarray) -> float:
 REWARD_TYPES = ("sparse", "dense")
 
 
+def ant_xml_file(ant: str) -> str:
+    """
+    :param ant: a name of :data:`ANT_XML_FILES` (``"gymnasium"``: the ``-v0`` tasks' Ant; ``"hrl"``: the ``-v1`` tasks')
+    :return: the path of that Ant's MuJoCo file
+    """
+    if ant not in ANT_XML_FILES:
+        raise ValueError(f"ant must be one of {sorted(ANT_XML_FILES)}, got {ant!r}")
+    return ANT_XML_FILES[ant]
+
+
 class AntLocomotionEnv(GoalReachingMixin, AntEnv):
     """
-    ``Pilot/AntLocomotion-v0``: gymnasium's Ant (``ant.xml``, the Ant of ``Pilot/AntMaze-v0``) on open ground.
+    ``Pilot/AntLocomotion-v0`` (``-v1``): gymnasium's Ant (the literature's, ``ant="hrl"``) on open ground.
 
-    Built with ``ANT_KWARGS``, the arguments gymnasium-robotics' AntMaze passes to its Ant, so both tasks
-    share gear (150), control range ([-1, 1]), masses and timing. Observation: the Ant's xy (2) followed by
-    the rest of its joint state (27) = 29; achieved goal: xy. Falling over does not end the episode.
+    Built with ``ANT_KWARGS``, the arguments gymnasium-robotics' AntMaze passes to its Ant, so that
+    ``Pilot/AntMaze-v0`` (``-v1``) has the same Ant: motors, masses and timing. Observation: the Ant's xy (2)
+    followed by the rest of its joint state (27) = 29; achieved goal: xy. Falling over does not end the episode.
 
     The keyword options below train a controller for landmark guidance (``--env-kwargs`` of the zoo, with
     ``max_episode_steps`` for longer episodes); their defaults are the task above, unchanged.
 
     :param render_mode: ``"rgb_array"``, ``"human"`` or None
+    :param ant: which Ant, a name of :data:`ANT_XML_FILES` (``"gymnasium"``: ``-v0``; ``"hrl"``: ``-v1``)
     :param goal_range: None: goals uniform over the disk of radius 2 around the origin (the task above);
         ``(low, high)``: each goal at a distance uniform in ``[low, high]`` from the Ant's current xy, in a
         uniform direction
@@ -154,6 +179,7 @@ class AntLocomotionEnv(GoalReachingMixin, AntEnv):
     def __init__(
         self,
         render_mode: str | None = None,
+        ant: str = "gymnasium",
         goal_range: tuple[float, float] | None = None,
         goal_hold_steps: int | None = None,
         distance_threshold: float = LOCOMOTION_DISTANCE_THRESHOLD,
@@ -166,6 +192,7 @@ class AntLocomotionEnv(GoalReachingMixin, AntEnv):
         reset_noise_scale: float = 0.0,
     ):
         check_render_mode(render_mode, _RENDER_MODES)
+        xml_file = ant_xml_file(ant)
         if goal_range is not None:
             goal_range = (float(goal_range[0]), float(goal_range[1]))
             if not 0 <= goal_range[0] <= goal_range[1]:
@@ -178,6 +205,7 @@ class AntLocomotionEnv(GoalReachingMixin, AntEnv):
             raise ValueError(f"reward_type must be one of {REWARD_TYPES}, got {reward_type!r}")
         if not -1.0 <= flip_up_z < 1.0:
             raise ValueError(f"flip_up_z must lie in [-1, 1), got {flip_up_z!r}")
+        self.ant = ant
         self.goal_range = goal_range
         self.goal_hold_steps = goal_hold_steps
         self.distance_threshold = float(distance_threshold)
@@ -190,7 +218,8 @@ class AntLocomotionEnv(GoalReachingMixin, AntEnv):
         self._steps_at_goal = 0
         self.goals_reached = 0
         ant_kwargs = {**ANT_KWARGS, "reset_noise_scale": reset_noise_scale}
-        AntEnv.__init__(self, render_mode=render_mode, ctrl_cost_weight=ctrl_cost_weight, **ant_kwargs)
+        self.metadata = {**type(self).metadata, "render_fps": _ANT_RENDER_FPS[ant]}
+        AntEnv.__init__(self, xml_file, render_mode=render_mode, ctrl_cost_weight=ctrl_cost_weight, **ant_kwargs)
         obs_space = spaces.Box(-np.inf, np.inf, shape=(ANT_OBS_DIM,), dtype=np.float32)
         self.observation_space = goal_observation_space(obs_space, 2)
 

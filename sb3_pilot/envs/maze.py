@@ -251,7 +251,8 @@ class Maze2DEnv(UMazeMap, GoalReachingMixin, gym.Env):
 
 class AntMazeEnv(GoalReachingMixin, gym.Env):
     """
-    ``Pilot/AntMaze-v0``: gymnasium-robotics' ``AntMaze_UMaze-v5`` with the Ant of ``Pilot/AntLocomotion-v0``.
+    ``Pilot/AntMaze-v0`` (``-v1``): gymnasium-robotics' ``AntMaze_UMaze-v5`` with the Ant of
+    ``Pilot/AntLocomotion-v0`` (``-v1``: the literature's Ant, ``ant="hrl"``).
 
     The maze, walls and Ant come from ``gymnasium_robotics.envs.maze.ant_maze_v5.AntMazeEnv`` (built with
     ``include_cfrc_ext_in_observation=False``). Start and goal follow :func:`sample_umaze_start_goal`, as in
@@ -261,20 +262,24 @@ class AntMazeEnv(GoalReachingMixin, gym.Env):
 
     :param goal_distribution: ``"far"`` or ``"uniform"``, see :func:`sample_umaze_start_goal`
     :param render_mode: ``"rgb_array"``, ``"human"`` or None
+    :param ant: which Ant, a name of :data:`~sb3_pilot.envs.locomotion.ANT_XML_FILES` (``"gymnasium"``: ``-v0``;
+        ``"hrl"``: ``-v1``)
     """
 
     metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 20}  # noqa: RUF012
     goal_space_id = UMAZE_GOAL_SPACE
 
-    def __init__(self, goal_distribution: str = "far", render_mode: str | None = None):
+    def __init__(self, goal_distribution: str = "far", render_mode: str | None = None, ant: str = "gymnasium"):
         from gymnasium_robotics.envs.maze.ant_maze_v5 import AntMazeEnv as RoboticsAntMazeEnv
 
-        from sb3_pilot.envs.locomotion import ANT_KWARGS, ANT_OBS_DIM
+        from sb3_pilot.envs.locomotion import ANT_KWARGS, ANT_OBS_DIM, ant_xml_file
 
         check_render_mode(render_mode, tuple(self.metadata["render_modes"]))
+        xml_file = ant_xml_file(ant)
         if goal_distribution not in GOAL_DISTRIBUTIONS:
             raise ValueError(f"goal_distribution must be one of {GOAL_DISTRIBUTIONS}, got {goal_distribution!r}")
         self.goal_distribution = goal_distribution
+        self.ant = ant
         self.distance_threshold = MAZE_DISTANCE_THRESHOLD
         self.render_mode = render_mode
         self.maze_env = RoboticsAntMazeEnv(
@@ -282,6 +287,7 @@ class AntMazeEnv(GoalReachingMixin, gym.Env):
             maze_map=[list(row) for row in UMAZE_MAP],
             continuing_task=True,
             reset_target=False,
+            xml_file=xml_file,
             include_cfrc_ext_in_observation=ANT_KWARGS["include_cfrc_ext_in_observation"],
         )
         # gymnasium-robotics writes the maze's XML to the temp folder and leaves it there; MuJoCo has read it
