@@ -338,6 +338,20 @@ def test_literature_ant_rarely_flips_under_random_actions():
     assert lowest_up_z("Pilot/AntLocomotion-v0") < 0 < lowest_up_z("Pilot/AntLocomotion-v1")
 
 
+def test_the_ant_of_a_task_is_read_from_its_model():
+    import gymnasium_robotics  # noqa: F401  (registers AntMaze_UMaze-v5)
+
+    from sb3_pilot.envs.locomotion import ANT_XML_FILES, ant_of, check_same_ant
+
+    v0, v1 = gym.make("Pilot/AntLocomotion-v0"), gym.make("Pilot/AntMaze-v1")
+    robotics = gym.make("AntMaze_UMaze-v5", xml_file=ANT_XML_FILES["hrl"])
+    assert (ant_of(v0), ant_of(v1), ant_of(robotics), ant_of(gym.make("Pilot/Maze2D-v0"))) == ("gymnasium", "hrl", "hrl", None)
+    check_same_ant(v1, robotics)  # the same Ant in two tasks
+    check_same_ant(v0, gym.make("Pilot/Maze2D-v0"))  # no Ant to compare
+    with pytest.raises(ValueError, match=r"trained on 'gymnasium'.*simulates 'hrl'"):
+        check_same_ant(v0, v1, "controller.zip")
+
+
 def test_ant_must_be_named():
     with pytest.raises(ValueError, match="ant must be one of"):
         gym.make("Pilot/AntLocomotion-v1", ant="hiro")

@@ -139,6 +139,45 @@ def ant_xml_file(ant: str) -> str:
     return ANT_XML_FILES[ant]
 
 
+#: What tells the Ants apart in a built env: each named Ant's motors' gear and MuJoCo timestep
+_ANT_DYNAMICS: dict[str, tuple[float, float]] = {"gymnasium": (150.0, 0.01), "hrl": (30.0, 0.02)}
+
+
+def ant_of(env: Any) -> str | None:
+    """
+    Which Ant an env simulates, read from its MuJoCo model (on the unwrapped env, or on its ``ant_env`` as in
+    gymnasium-robotics' ``AntMaze``): its motors' gear and timestep.
+
+    :param env: a Gymnasium env (wrapped or not)
+    :return: the Ant's name in :data:`ANT_XML_FILES`, or None for an env of no Ant (or of another Ant)
+    """
+    task = getattr(env, "unwrapped", env)
+    model = getattr(getattr(task, "ant_env", task), "model", None)
+    if model is None or model.nu != 8 or model.nq != 15:
+        return None
+    dynamics = (float(model.actuator_gear[0, 0]), float(model.opt.timestep))
+    return next((name for name, known in _ANT_DYNAMICS.items() if np.allclose(known, dynamics)), None)
+
+
+def check_same_ant(controller_task: Any, guided_task: Any, controller_name: str = "the controller") -> None:
+    """
+    Refuse to guide a controller on another Ant than the one it was trained on (``-v0`` and ``-v1`` tasks look alike:
+    same observation and action spaces, other dynamics).
+
+    :param controller_task: the env the controller trained on (as rebuilt from its run's settings)
+    :param guided_task: the env it is to act in
+    :param controller_name: how to name the controller in the error (e.g. its file)
+    :raises ValueError: if both simulate a known Ant and the two differ
+    """
+    trained, guided = ant_of(controller_task), ant_of(guided_task)
+    if trained is not None and guided is not None and trained != guided:
+        raise ValueError(
+            f"{controller_name} was trained on {trained!r}'s Ant ({ANT_XML_FILES[trained]}) but the task to guide "
+            f"simulates {guided!r}'s ({ANT_XML_FILES[guided]}): their dynamics differ (Pilot/...-v0: 'gymnasium', "
+            "Pilot/...-v1: 'hrl'). Guide it on a task of its own Ant, or train a controller on this one."
+        )
+
+
 class AntLocomotionEnv(GoalReachingMixin, AntEnv):
     """
     ``Pilot/AntLocomotion-v0`` (``-v1``): gymnasium's Ant (the literature's, ``ant="hrl"``) on open ground.
