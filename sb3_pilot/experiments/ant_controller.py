@@ -13,7 +13,8 @@ planner, and evaluate the controller guided by the planner's landmarks on ``Pilo
 ``train`` and ``planner`` run the RL Zoo (``python -m sb3_pilot.experiments.zoo train ...``, printed before it runs): the
 controller's recipe is ``hyperparams/cpu/ant_controller.yml`` (``--conf-file`` for another, e.g.
 ``cpu/ant_controller_upright.yml``). ``check`` and ``guided`` print tables (Markdown)
-and can write them as JSON (``--json``).
+and can write them as JSON (``--json``). ``--version v1`` takes the literature's Ant instead of gymnasium's: the
+controller trains on ``Pilot/AntLocomotion-v1`` and is guided on ``Pilot/AntMaze-v1``.
 """
 
 from __future__ import annotations
@@ -34,8 +35,10 @@ from sb3_pilot.envs import register_envs
 from sb3_pilot.envs.locomotion import ant_up_z
 from sb3_pilot.envs.maze import WallMarginWrapper, umaze_wall_distance  # noqa: F401 (their former home: old commands)
 
-CONTROLLER_ENV = "Pilot/AntLocomotion-v0"
-MAZE_ENV = "Pilot/AntMaze-v0"
+#: The versions of the two Ant tasks: ``v0`` gymnasium's Ant, ``v1`` the literature's (``sb3_pilot.envs.locomotion``)
+VERSIONS = ("v0", "v1")
+CONTROLLER_ENV = "Pilot/AntLocomotion-{version}"
+MAZE_ENV = "Pilot/AntMaze-{version}"
 SOURCE_ENV = "Pilot/Maze2D-v0"
 #: The open-ground check: the training task's goals (0.5-3 units away, success within 0.5), one new goal as soon
 #: as one is reached, 500-step episodes, from a random position and heading, and no end when flipped.
@@ -90,7 +93,7 @@ def train(args: argparse.Namespace) -> None:
         "--algo",
         "sac",
         "--env",
-        CONTROLLER_ENV,
+        CONTROLLER_ENV.format(version=args.version),
         "--conf-file",
         args.conf_file,
         "--seed",
@@ -109,16 +112,17 @@ def train(args: argparse.Namespace) -> None:
     _run(command)
 
 
-def recipe(conf_file: str = DEFAULT_RECIPE) -> dict[str, Any]:
+def recipe(conf_file: str = DEFAULT_RECIPE, version: str = "v0") -> dict[str, Any]:
     """
     :param conf_file: a controller recipe, relative to ``sb3_pilot``'s ``hyperparams/`` folder
-    :return: its ``Pilot/AntLocomotion-v0`` entry
+    :param version: the Ant
+    :return: its ``Pilot/AntLocomotion-<version>`` entry
     """
     import yaml
 
     from sb3_pilot.experiments.zoo import hyperparams_dir
 
-    return yaml.safe_load((hyperparams_dir() / conf_file).read_text())[CONTROLLER_ENV]
+    return yaml.safe_load((hyperparams_dir() / conf_file).read_text())[CONTROLLER_ENV.format(version=version)]
 
 
 def continue_training(args: argparse.Namespace) -> None:
@@ -132,11 +136,11 @@ def continue_training(args: argparse.Namespace) -> None:
     from stable_baselines3.common.env_util import make_vec_env
 
     th.set_num_threads(1)
-    entry = recipe(args.conf_file)
+    entry = recipe(args.conf_file, args.version)
     output = Path(args.output)
     output.parent.mkdir(parents=True, exist_ok=True)
     env = make_vec_env(
-        CONTROLLER_ENV,
+        CONTROLLER_ENV.format(version=args.version),
         n_envs=entry["n_envs"],
         seed=args.seed,
         env_kwargs=entry["env_kwargs"],
@@ -158,16 +162,18 @@ def continue_training(args: argparse.Namespace) -> None:
     print(f"saved {output} at {model.num_timesteps} steps ({time.time() - wall:.0f} s of training)", flush=True)
 
 
-def open_ground_check(model: Any, episodes: int, seed: int) -> dict[str, float]:
+def open_ground_check(model: Any, episodes: int, seed: int, version: str = "v0") -> dict[str, float]:
     """
     The controller on open ground, from a random position in the map's extent and a random heading, chasing goals
     0.5-3 units away (a new one once within 0.5, or after ``CHECK_GOAL_TIMEOUT`` steps) for 500 steps.
+
+    :param version: the Ant (``Pilot/AntLocomotion-<version>``)
 
     :return: ``success`` (goals reached / goals set), ``goals_per_episode``, ``steps_per_goal`` (of the reached
         ones), ``flipped`` (fraction of steps with the torso's up axis pointing down), ``speed`` (mean xy
         displacement per step) and ``progress`` (mean decrease of the distance to the goal per step)
     """
-    env = gym.make(CONTROLLER_ENV, **CHECK_ENV_KWARGS)
+    env = gym.make(CONTROLLER_ENV.format(version=version), **CHECK_ENV_KWARGS)
     ant = env.unwrapped
     rng = np.random.default_rng(seed)
     reached, missed, steps_to_goal, flipped, speed, progress = 0, 0, [], [], [], []
@@ -211,7 +217,7 @@ def check(args: argparse.Namespace) -> None:
     model = load_controller(args.model)
     rows = {}
     for seed in args.seeds:
-        rows[seed] = open_ground_check(model, args.episodes, seed)
+        rows[seed] = open_ground_check(model, args.episodes, seed, args.version)
     keys = list(next(iter(rows.values())))
     print(f"\nOpen-ground check of {args.model}: {args.episodes} episodes of 500 steps per seed")
     print("| seed | " + " | ".join(keys) + " |")
@@ -289,9 +295,10 @@ def guided_episodes(
     seed: int,
     episodes: int,
     snap: bool = False,
+    version: str = "v0",
 ) -> dict[str, Any]:
     """
-    The controller on ``Pilot/AntMaze-v0`` (far goal), guided by ``LandmarkGuidance(planner, horizon,
+    The controller on ``Pilot/AntMaze-<version>`` (far goal), guided by ``LandmarkGuidance(planner, horizon,
     switch_distance, snap)`` or, with ``horizon=None``, shown the real goal directly. Episode ``i`` is reset with seed
     ``10_000 * seed + i``, as the challenges' ``ControllerEvaluation`` stage does.
 
@@ -300,7 +307,7 @@ def guided_episodes(
     """
     from sb3_pilot import LandmarkGuidance
 
-    env = gym.make(MAZE_ENV)
+    env = gym.make(MAZE_ENV.format(version=version))
     if horizon is not None:
         env = LandmarkGuidance(env, planner, horizon=horizon, switch_distance=switch_distance, snap=snap)
     maze = env.unwrapped
@@ -350,7 +357,7 @@ def guided(args: argparse.Namespace) -> None:
     for horizon, switch_distance in configs:
         start = time.time()
         per_seed = [
-            guided_episodes(model, goal_planner, horizon, switch_distance, seed, args.episodes, args.snap)
+            guided_episodes(model, goal_planner, horizon, switch_distance, seed, args.episodes, args.snap, args.version)
             for seed in args.seeds
         ]
         row = {
@@ -365,7 +372,8 @@ def guided(args: argparse.Namespace) -> None:
         results.append(row)
         label = "unguided (real goal)" if horizon is None else f"k={horizon}, switch={switch_distance}"
         print(f"{label}: {row} ({time.time() - start:.0f} s)", flush=True)
-    print(f"\nGuided zero-shot {MAZE_ENV} (far goal), seeds {args.seeds} x {args.episodes} episodes, deterministic")
+    maze = MAZE_ENV.format(version=args.version)
+    print(f"\nGuided zero-shot {maze} (far goal), seeds {args.seeds} x {args.episodes} episodes, deterministic")
     print("| guidance | k | switch | success (per seed) | success | reached | flipped | final dist | speed |")
     print("|---|---|---|---|---|---|---|---|---|")
     for row in results:
@@ -380,7 +388,7 @@ def guided(args: argparse.Namespace) -> None:
         )
     if args.json:
         meta = {"model": str(args.model), "planner": str(args.planner), "seeds": args.seeds, "episodes": args.episodes}
-        meta["snap"] = args.snap
+        meta["snap"], meta["version"] = args.snap, args.version
         Path(args.json).write_text(json.dumps({**meta, "results": results}, indent=2))
 
 
@@ -388,6 +396,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = parser.add_subparsers(dest="command", required=True)
     p_train = commands.add_parser("train", help="train the controller with the zoo (hyperparams/cpu/ant_controller.yml)")
+    p_train.add_argument("--version", choices=VERSIONS, default="v0", help="the Ant: v0 gymnasium's, v1 the literature's")
     p_train.add_argument("--seed", type=int, default=0)
     p_train.add_argument("--steps", type=int, default=None, help="override n_timesteps")
     p_train.add_argument("--conf-file", default=DEFAULT_RECIPE, help="the recipe, in sb3_pilot's hyperparams/ folder")
@@ -398,6 +407,7 @@ def main(argv: list[str] | None = None) -> None:
     p_train.add_argument("--save-freq", type=int, default=50_000, help="checkpoint interval in steps, with --continue-from")
     p_train.set_defaults(func=train)
     p_check = commands.add_parser("check", help="open-ground check of a controller")
+    p_check.add_argument("--version", choices=VERSIONS, default="v0", help="the Ant: v0 gymnasium's, v1 the literature's")
     p_check.add_argument("--model", required=True)
     p_check.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     p_check.add_argument("--episodes", type=int, default=5)
@@ -412,6 +422,7 @@ def main(argv: list[str] | None = None) -> None:
     p_planner.add_argument("--wall-margin", type=float, default=0.0, help="WallMarginWrapper's margin (0: plain Maze2D)")
     p_planner.set_defaults(func=planner)
     p_guided = commands.add_parser("guided", help="evaluate the guided controller on Pilot/AntMaze-v0")
+    p_guided.add_argument("--version", choices=VERSIONS, default="v0", help="the Ant: v0 gymnasium's, v1 the literature's")
     p_guided.add_argument("--model", required=True)
     p_guided.add_argument("--planner", required=True)
     p_guided.add_argument("--horizons", type=int, nargs="+", default=[1, 2, 3, 4])
