@@ -23,10 +23,10 @@ from sb3_pilot import UDPO
 from sb3_pilot.distill import GoalPlanner
 from sb3_pilot.envs import PILOT_ENV_IDS
 from sb3_pilot.experiments.evaluation import load_final_distances
-from sb3_pilot.experiments.zoo import (
+from sb3_pilot.experiments.zoo import _with_conf_file
+from sb3_pilot.experiments.zoo_plugin import (
     INVERSE_DYNAMICS_INTERVAL_GRID,
     PLANNER_COEF_GRID,
-    _with_conf_file,
     hyperparams_dir,
     register,
     sample_udpo_params,

@@ -46,33 +46,9 @@ import rl_zoo3
 import yaml
 from gymnasium.envs.registration import EnvSpec, load_env_creator
 
-from sb3_pilot.experiments.zoo_plugin import (
-    CONF_OF,
-    INVERSE_DYNAMICS_INTERVAL_GRID,
-    PLANNER_COEF_GRID,
-    hyperparams_dir,
-    register,
-    sample_udpo_params,
-)
-from sb3_pilot.experiments.zoo_run import find_zoo_run, load_zoo_run, zoo_saved
+from sb3_pilot.experiments.zoo_plugin import CONF_OF, hyperparams_dir, register
+from sb3_pilot.experiments.zoo_run import find_zoo_run, load_zoo_run
 from sb3_pilot.experiments.zoo_shim import record_video_calls_to, zoo_train_with
-
-__all__ = [  # the names of this module, and of the modules it is made of that were once here
-    "CONF_OF",
-    "INVERSE_DYNAMICS_INTERVAL_GRID",
-    "PLANNERS_FOLDER",
-    "PLANNER_COEF_GRID",
-    "ZOO_COMMANDS",
-    "find_zoo_run",
-    "hyperparams_dir",
-    "load_zoo_run",
-    "main",
-    "planner_path",
-    "planner_quality",
-    "register",
-    "sample_udpo_params",
-    "zoo_saved",
-]
 
 #: Commands of ``python -m rl_zoo3.cli`` that :func:`main` runs.
 ZOO_COMMANDS = ("train", "enjoy", "record_video", "record_training", "plot_train", "plot_from_file", "all_plots")
