@@ -25,9 +25,9 @@ from sb3_pilot.experiments.challenges.controller import (
     ControllerEvaluation,
     choose_checkpoint,
     find_checkpoints,
-    training_task,
 )
-from sb3_pilot.experiments.challenges.stages import StageContext, load_zoo_model
+from sb3_pilot.experiments.challenges.stages import StageContext
+from sb3_pilot.experiments.zoo_run import load_zoo_model, training_task
 
 ENV_ID, ENV_NAME = "Pilot/Maze2D-v0", "Pilot-Maze2D-v0"
 

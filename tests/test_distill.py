@@ -10,6 +10,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_pilot import UDPO
+from sb3_pilot.common.saved_models import without_replay_buffer
 from sb3_pilot.distill import GoalPlanner, distill_goal_planner
 from sb3_pilot.distill.distill import rollout_pairs, teacher_goal_distribution
 
@@ -232,7 +233,7 @@ def test_distill_refusals(point_teacher, tmp_path):
     with pytest.raises(ValueError, match="replay buffer"):
         distill_goal_planner(UDPO.load(tmp_path / "teacher", env=PointGoalEnv()), labels="planned")
     with pytest.raises(ValueError, match="env="):
-        no_her = {"replay_buffer_class": None, "replay_buffer_kwargs": {}}  # a HER buffer needs an env to load
+        no_her = without_replay_buffer()  # a HER buffer needs an env to load
         distill_goal_planner(UDPO.load(tmp_path / "teacher", custom_objects=no_her), source_task="PointGoalEnv")
     with pytest.raises(ValueError, match="labels must be one of"):
         distill_goal_planner(point_teacher, labels="real")

@@ -17,8 +17,8 @@ from rl_zoo3.utils import StoreDict
 
 from benchmarks import image_localisation, image_probe, image_recipe
 from sb3_pilot.common.wrappers import ImageFrameStack
-from sb3_pilot.experiments.challenges.stages import load_zoo_model
 from sb3_pilot.experiments.statistics import iqm
+from sb3_pilot.experiments.zoo_run import load_zoo_model
 from sb3_pilot.sac import LeanSAC
 
 TASK = "Pilot/ReacherImage-v0"

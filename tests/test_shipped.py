@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from sb3_pilot import GoalPlanner, LandmarkGuidance
+from sb3_pilot.common.saved_models import vecnormalize_path
 from sb3_pilot.envs import register_envs
 from sb3_pilot.experiments.ant_controller import load_controller
 from sb3_pilot.experiments.challenges import REUSE_SHIPPED, Shipped
@@ -24,8 +25,9 @@ from sb3_pilot.experiments.challenges.definitions import (
     SOURCES_DIR,
     UMAZE_SHIPPED_DIR,
 )
-from sb3_pilot.experiments.challenges.stages import config_hash, load_zoo_model, vecnormalize_path
+from sb3_pilot.experiments.challenges.stages import config_hash
 from sb3_pilot.experiments.zoo import register
+from sb3_pilot.experiments.zoo_run import load_zoo_model
 
 register_envs()
 SHIPPED_DIR = Path(__file__).resolve().parent.parent / "zoo_runs" / "zero-shot-ant-maze" / "controller"

@@ -14,6 +14,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_pilot import GoalPlanner, distill_goal_planner
+from sb3_pilot.common.saved_models import without_replay_buffer
 from sb3_pilot.distill import load_teacher
 from sb3_pilot.distill.distill import rollout_pairs
 from sb3_pilot.distill.teacher import DETERMINISTIC_TEACHER_NOISE
@@ -131,7 +132,7 @@ def test_bad_teachers_are_refused_by_name_before_work(teachers: dict[str, BaseAl
         distill_goal_planner({"policy": "SAC"})
 
     teachers["SAC"].save(tmp_path / "sac.zip")
-    no_buffer = {"replay_buffer_class": None, "replay_buffer_kwargs": {}}  # a HER buffer needs an env to load
+    no_buffer = without_replay_buffer()  # a HER buffer needs an env to load
     with pytest.raises(ValueError, match=r"SAC teacher in an env, and it has none.*pass env="):
         distill_goal_planner(SAC.load(tmp_path / "sac.zip", custom_objects=no_buffer), source_task="PointGoalEnv")
     with pytest.raises(FileNotFoundError, match="No model file"):

@@ -18,6 +18,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.save_util import load_from_zip_file, save_to_zip_file
 
 from sb3_pilot import UDPO
+from sb3_pilot.common.saved_models import without_replay_buffer
 from sb3_pilot.udpo.policies import InverseDynamics
 
 FAST_KWARGS = dict(
@@ -328,8 +329,7 @@ def test_shipped_models_load() -> None:
     if not zips:
         pytest.skip("no UDPO model committed")
     for path in zips:
-        no_buffer = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}  # HER needs the env
-        model = UDPO.load(path, device="cpu", custom_objects=no_buffer)
+        model = UDPO.load(path, device="cpu", custom_objects=without_replay_buffer())  # HER's buffer needs the env
         assert model.num_timesteps > 0 and "forward_dynamics" not in model.policy_kwargs
 
 

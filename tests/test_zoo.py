@@ -23,10 +23,10 @@ from sb3_pilot import UDPO
 from sb3_pilot.distill import GoalPlanner
 from sb3_pilot.envs import PILOT_ENV_IDS
 from sb3_pilot.experiments.evaluation import load_final_distances
-from sb3_pilot.experiments.zoo import (
+from sb3_pilot.experiments.zoo import _with_conf_file
+from sb3_pilot.experiments.zoo_plugin import (
     INVERSE_DYNAMICS_INTERVAL_GRID,
     PLANNER_COEF_GRID,
-    _with_conf_file,
     hyperparams_dir,
     register,
     sample_udpo_params,
@@ -429,9 +429,9 @@ def test_eval_env_gets_yaml_env_kwargs(tmp_path: Path) -> None:
     """
     A YAML entry's ``env_kwargs`` reach the zoo's evaluation env as they reach the training env (the zoo alone gives
     it the command line's only); ``--eval-env-kwargs`` still wins. Read back: evaluation episode lengths, and the
-    task options :func:`zoo_env_kwargs` recovers from the run (YAML, then command line).
+    task options :func:`zoo_env_kwargs` recovers from the run (the command line's replacing the YAML's).
     """
-    from sb3_pilot.experiments.challenges.stages import zoo_env_kwargs
+    from sb3_pilot.experiments.zoo_run import zoo_env_kwargs
 
     conf = tmp_path / "short.yml"
     entry = yaml.safe_load((HYPERPARAMS / "cpu" / "sac.yml").read_text())["Pilot/Maze2D-v0"]

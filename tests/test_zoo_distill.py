@@ -15,7 +15,8 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 from sb3_pilot import GoalPlanner, PilotBonusWrapper
 from sb3_pilot.envs.maze import WallMarginWrapper
-from sb3_pilot.experiments.zoo import find_zoo_run, load_zoo_run, main, planner_path
+from sb3_pilot.experiments.zoo import main, planner_path
+from sb3_pilot.experiments.zoo_run import find_zoo_run, load_zoo_run
 
 MAZE = "Pilot/Maze2D-v0"
 #: Tiny runs: 20-step episodes, 40 steps before the first update, 16-unit networks

@@ -20,6 +20,7 @@ from stable_baselines3.common.utils import check_for_correct_spaces
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.td3.policies import TD3Policy
 
+from sb3_pilot.common.saved_models import without_replay_buffer
 from sb3_pilot.udpo import UDPO
 
 #: What each label needs: ``"rollouts"`` runs any agent's policy; ``"planned"`` reads UDPO's state planner
@@ -74,8 +75,8 @@ def load_teacher(path: str | os.PathLike, env: GymEnv | None = None, device: th.
     if algorithm.endswith(":TD3") and data.get("policy_delay") == 1 and data.get("target_noise_clip") == 0.0:
         algorithm = "stable_baselines3:DDPG"  # DDPG is TD3 with these settings
     package, name = algorithm.split(":")
-    no_buffer = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}
-    return getattr(importlib.import_module(package), name).load(path, env=env, device=device, custom_objects=no_buffer)
+    algorithm_class = getattr(importlib.import_module(package), name)
+    return algorithm_class.load(path, env=env, device=device, custom_objects=without_replay_buffer())
 
 
 def is_deterministic(model: BaseAlgorithm) -> bool:

@@ -67,21 +67,13 @@ def _run(command: list[str]) -> None:
     print(f"wall time {time.time() - start:.0f} s", flush=True)
 
 
-def zoo_model_path(log_folder: str | Path, algo: str, env_id: str) -> Path:
-    """The zip of the latest zoo run of ``algo`` on ``env_id`` under ``log_folder``."""
-    name = env_id.replace("/", "-")
-    runs = sorted(Path(log_folder, algo).glob(f"{name}_*"), key=lambda path: int(path.name.rsplit("_", 1)[1]))
-    if not runs:
-        raise FileNotFoundError(f"No zoo run of {algo} on {env_id} under {log_folder}.")
-    return runs[-1] / f"{name}.zip"
-
-
 def load_controller(path: str | Path) -> Any:
     """The SAC controller alone (no replay buffer, HER's included: it would need the env), on the CPU."""
     from stable_baselines3 import SAC
 
-    custom = {"buffer_size": 1, "replay_buffer_class": None, "replay_buffer_kwargs": {}}
-    return SAC.load(path, device="cpu", custom_objects=custom)
+    from sb3_pilot.common.saved_models import without_replay_buffer
+
+    return SAC.load(path, device="cpu", custom_objects=without_replay_buffer())
 
 
 def train(args: argparse.Namespace) -> None:
@@ -234,16 +226,13 @@ def planner(args: argparse.Namespace) -> None:
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     from sb3_pilot import UDPO, distill_goal_planner
-    from sb3_pilot.experiments.challenges.stages import load_zoo_model
-    from sb3_pilot.experiments.zoo import register
-
-    register()  # the zoo's ALGOS["udpo"], which load_zoo_model reads
+    from sb3_pilot.experiments.zoo_run import find_zoo_run, load_zoo_model
 
     try:
-        model_path = zoo_model_path(args.log_folder, "udpo", SOURCE_ENV)
-    except FileNotFoundError:
+        model_path = find_zoo_run(args.log_folder, "udpo", SOURCE_ENV)  # the latest run
+    except FileNotFoundError:  # none, or the latest has no model (interrupted)
         model_path = None
-    if model_path is None or not model_path.is_file() or args.retrain:
+    if model_path is None or args.retrain:
         _run(
             [
                 *_python(),
@@ -274,7 +263,7 @@ def planner(args: argparse.Namespace) -> None:
                 args.log_folder,
             ]
         )
-        model_path = zoo_model_path(args.log_folder, "udpo", SOURCE_ENV)
+        model_path = find_zoo_run(args.log_folder, "udpo", SOURCE_ENV)
     print(f"distilling {model_path}")
     # the env of the teacher's distillation rollouts: the goals it was trained on
     teacher, _ = load_zoo_model(model_path, env=DummyVecEnv([lambda: gym.make(SOURCE_ENV, goal_distribution="uniform")]))

@@ -34,7 +34,7 @@ class GoalEvalCallback(EvalCallback):
     SB3's ``EvalCallback`` that also records, for goal envs, the mean distance between the achieved and the desired
     goal at the end of the evaluation episodes: logged as ``eval/final_distance`` and saved in ``evaluations.npz``
     as ``final_distances`` (one value per evaluation, beside ``successes``). Same parameters as ``EvalCallback``.
-    The zoo entry (:func:`sb3_pilot.experiments.zoo.register`) makes the RL Zoo evaluate with it.
+    The zoo entry's ``train`` evaluates with it (:class:`~sb3_pilot.experiments.zoo_shim.PilotExperimentManager`).
 
     Success and distance are recorded at the episode ends ``evaluate_policy`` counts: on an env wrapped with a
     ``Monitor``, those the ``Monitor`` records. An episode ended by a wrapper above the ``Monitor`` (the zoo applies
@@ -48,6 +48,27 @@ class GoalEvalCallback(EvalCallback):
         self.evaluations_final_distance: list[float] = []
         self._episode_distances: list[float] = []
         self._warned_uncounted_end = False
+
+    @classmethod
+    def from_eval_callback(cls, callback: EvalCallback) -> GoalEvalCallback:
+        """
+        :param callback: an ``EvalCallback`` built by code that is not ours (the RL Zoo's ``create_callbacks``), before
+            training
+        :return: the same evaluation (env, episodes, frequency, paths, callbacks, ...) with the final distances recorded
+        """
+        return cls(
+            callback.eval_env,
+            callback_on_new_best=callback.callback_on_new_best,
+            callback_after_eval=callback.callback,
+            n_eval_episodes=callback.n_eval_episodes,
+            eval_freq=callback.eval_freq,
+            log_path=None if callback.log_path is None else os.path.dirname(callback.log_path),  # "<log_path>/evaluations"
+            best_model_save_path=callback.best_model_save_path,
+            deterministic=callback.deterministic,
+            render=callback.render,
+            verbose=callback.verbose,
+            warn=callback.warn,
+        )
 
     def _log_success_callback(self, locals_: dict[str, Any], globals_: dict[str, Any]) -> None:
         if locals_["done"] and locals_.get("is_monitor_wrapped") and "episode" not in locals_["info"]:

@@ -26,7 +26,8 @@ from sb3_pilot.distill import GoalPlanner
 from sb3_pilot.envs import register_envs
 from sb3_pilot.experiments.challenges.controller import ControllerEvaluation
 from sb3_pilot.experiments.challenges.definitions import REUSE_SHIPPED
-from sb3_pilot.experiments.challenges.stages import Shipped, ShippedFileMissing, load_zoo_model, shipped_file
+from sb3_pilot.experiments.challenges.stages import Shipped, ShippedFileMissing, shipped_file
+from sb3_pilot.experiments.zoo_run import load_zoo_model
 from sb3_pilot.transfer import LandmarkGuidance
 
 #: The challenge whose shipped models, horizon and switch rule the video shows.

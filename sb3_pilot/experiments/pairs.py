@@ -43,10 +43,11 @@ import numpy as np
 
 from sb3_pilot.experiments.challenges.definitions import CHALLENGES, HER, REUSE_SHIPPED
 from sb3_pilot.experiments.challenges.runner import count_sources, describe_source, mean_curve, source_learning
-from sb3_pilot.experiments.challenges.stages import load_zoo_model, play_episodes, zoo_run_dir
+from sb3_pilot.experiments.challenges.stages import play_episodes, zoo_run_dir
 from sb3_pilot.experiments.evaluation import load_final_distances
 from sb3_pilot.experiments.statistics import REPS, aggregate_name, format_estimate, format_seeds, summary_statistics
 from sb3_pilot.experiments.zoo import register
+from sb3_pilot.experiments.zoo_run import load_zoo_model
 
 FINAL_EVAL = "final_eval.json"
 #: Every challenge by its output folder's name, those of ``--reuse-shipped`` included.

@@ -1,160 +1,57 @@
 """
 RL-Zoo entry point: ``python -m sb3_pilot.experiments.zoo COMMAND [zoo flags]``, COMMAND one of ``train``, ``enjoy``,
 ``record_video``, ``record_training``, ``plot_train``, ``plot_from_file``, ``all_plots``, and ``distill``, this
-package's own (:func:`distill_zoo_run`: the goal planner of a trained zoo run, written where ``sac_pilot.yml``'s bonus
-reads it).
+package's own (the goal planner of a trained zoo run, written where ``sac_pilot.yml``'s bonus reads it).
 
-:func:`register` adds UDPO to the zoo as ``udpo`` (``rl_zoo3.ALGOS``, plus a hyperparameter sampler for
-``--optimize``) and :class:`~sb3_pilot.sac.LeanSAC` as ``lean_sac`` (SAC's YAML and sampler), and registers the
-``Pilot/`` tasks; :func:`main` then runs the zoo's own command, as the RL-Zoo
-docs do for SBX, so every zoo flag works. Five conveniences on top of ``python -m rl_zoo3.cli``:
+:func:`main` calls :func:`~sb3_pilot.experiments.zoo_plugin.register` (UDPO as the zoo's ``udpo``,
+:class:`~sb3_pilot.sac.LeanSAC` as ``lean_sac``, their ``--optimize`` samplers, the ``Pilot/`` and gymnasium-robotics'
+tasks), then runs the zoo's own command, as the RL-Zoo docs do for SBX, so every zoo flag works. Five conveniences on
+top of ``python -m rl_zoo3.cli``:
 
 - ``train`` without ``--conf-file`` reads this package's ``hyperparams/<algo>.yml`` for ``udpo`` and for any task
   that file has an entry for (every ``Pilot/`` task, gymnasium-robotics' ``FetchReach-v4``, ...), where the zoo
   would look inside the ``rl_zoo3`` package;
 - a ``--conf-file`` that is no file from the current folder is looked up in that ``hyperparams/`` folder, so
   ``--conf-file cpu/udpo.yml`` or ``--conf-file sac_pilot.yml`` work from anywhere;
-- the evaluation env gets a YAML entry's ``env_kwargs`` as the training env does (the zoo gives it those of the
-  command line only), unless ``--eval-env-kwargs`` says otherwise;
-- ``--save-freq`` checkpoints of a normalised run carry their ``VecNormalize`` statistics
-  (:class:`NormalizedCheckpointCallback`), which the zoo saves with the final model only;
+- ``train`` evaluates with :class:`~sb3_pilot.experiments.evaluation.GoalEvalCallback` (``evaluations.npz`` gets the
+  final distances to the goal), gives the evaluation env a YAML entry's ``env_kwargs`` as the training env gets
+  them (the zoo gives it those of the command line only) unless ``--eval-env-kwargs`` says otherwise, and its
+  ``--save-freq`` checkpoints of a normalised run carry their ``VecNormalize`` statistics, which the zoo saves with
+  the final model only (:class:`~sb3_pilot.experiments.zoo_shim.PilotExperimentManager`);
 - ``plot_train -o FILE`` saves the figure (the zoo only calls ``plt.show()``), and ``-e Pilot/...`` finds the
   zoo's log folders (named ``Pilot-...``).
 
 ``record_video`` and ``record_training`` are the zoo's scripts (``rl_zoo3.record_video``, ``rl_zoo3.record_training``)
 with UDPO and the tasks registered; ``record_training`` records each checkpoint through this entry point (the zoo's
 calls ``python -m rl_zoo3.record_video``, which knows no ``udpo``) and runs the ``ffmpeg`` command (the system's, else
-``imageio-ffmpeg``'s).
+``imageio-ffmpeg``'s). The changes to the zoo that have no hook are in :mod:`sb3_pilot.experiments.zoo_shim`; reading
+a zoo run back (``distill``'s teacher) is :mod:`sb3_pilot.experiments.zoo_run`.
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
 import os
 import runpy
 import shutil
-import site
-import subprocess
 import sys
-import sysconfig
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import optuna
 import rl_zoo3
 import yaml
 from gymnasium.envs.registration import EnvSpec, load_env_creator
-from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import CheckpointCallback
-from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
-from sb3_pilot.envs import register_envs
-from sb3_pilot.experiments.evaluation import GoalEvalCallback
-from sb3_pilot.sac import LeanSAC
-from sb3_pilot.udpo import UDPO
+from sb3_pilot.experiments.zoo_plugin import CONF_OF, hyperparams_dir, register
+from sb3_pilot.experiments.zoo_run import find_zoo_run, load_zoo_run
+from sb3_pilot.experiments.zoo_shim import record_video_calls_to, zoo_train_with
 
-#: Zoo algorithms of this package that read another algorithm's YAML (``--algo lean_sac`` reads ``sac.yml``).
-CONF_OF = {"lean_sac": "sac"}
 #: Commands of ``python -m rl_zoo3.cli`` that :func:`main` runs.
 ZOO_COMMANDS = ("train", "enjoy", "record_video", "record_training", "plot_train", "plot_from_file", "all_plots")
-#: The paper's UDPO search grid (appendix, "Important Hyperparameters"): ``lambda`` and ``Delta``.
-PLANNER_COEF_GRID = (1e-3, 5e-3, 1e-2, 5e-2, 1e-1)
-INVERSE_DYNAMICS_INTERVAL_GRID = (200, 500, 1500, 2000)
-
-
-def hyperparams_dir() -> Path:
-    """
-    The package's RL-Zoo YAML folder: ``hyperparams/`` of the source checkout (editable install), else the copy a
-    wheel installs under ``<prefix>/share/sb3_pilot/hyperparams`` (setup.cfg ``data_files``).
-    """
-    share = Path("share", "sb3_pilot", "hyperparams")
-    candidates = [
-        Path(__file__).resolve().parents[2] / "hyperparams",
-        Path(sysconfig.get_path("data")) / share,
-        Path(site.getuserbase()) / share,
-    ]
-    for candidate in candidates:
-        if (candidate / "udpo.yml").is_file():
-            return candidate
-    raise FileNotFoundError(f"sb3_pilot's hyperparams/ folder was not found in {[str(path) for path in candidates]}.")
-
-
-def sample_udpo_params(trial: optuna.Trial, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
-    """``--optimize`` sampler for UDPO: the zoo's SAC sampler plus the paper's grid for ``lambda`` and ``Delta``."""
-    from rl_zoo3.hyperparams_opt import sample_sac_params
-
-    hyperparams = sample_sac_params(trial, n_actions, n_envs, additional_args)
-    hyperparams["planner_coef"] = trial.suggest_categorical("planner_coef", PLANNER_COEF_GRID)
-    hyperparams["inverse_dynamics_interval"] = trial.suggest_categorical(
-        "inverse_dynamics_interval", INVERSE_DYNAMICS_INTERVAL_GRID
-    )
-    return hyperparams
-
-
-def _eval_env_like_training(preprocess: Callable[..., Any]) -> Callable[..., Any]:
-    """
-    The zoo's ``ExperimentManager._preprocess_hyperparams``, after which the evaluation env gets the ``env_kwargs`` of
-    the YAML entry, as the training env does. The zoo builds its evaluation env with the ``--env-kwargs`` of the
-    command line only (``eval_env_kwargs`` is set before the YAML is read), so a recipe whose task options are in
-    its YAML (``cpu/ant_controller_upright.yml``: 500-step episodes, moving goals) was evaluated on the default task.
-    ``--eval-env-kwargs`` still wins.
-    """
-
-    @functools.wraps(preprocess)
-    def wrapped(self: Any, hyperparams: dict[str, Any]) -> Any:
-        result = preprocess(self, hyperparams)
-        if self._eval_env_kwargs_args is None:
-            self.eval_env_kwargs = self.env_kwargs
-        return result
-
-    return wrapped
-
-
-class NormalizedCheckpointCallback(CheckpointCallback):
-    """
-    The zoo's ``--save-freq`` checkpoints, each with the ``VecNormalize`` statistics its model needs
-    (``rl_model_vecnormalize_<steps>_steps.pkl`` beside ``rl_model_<steps>_steps.zip``) when training normalises: the
-    zoo saves them with the final model only, so a checkpoint of a normalised run could not be evaluated.
-    """
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, save_vecnormalize=True, **kwargs)
-
-
-def register() -> None:
-    """
-    Register the ``Pilot/`` tasks and gymnasium-robotics' tasks (whose own IDs ``hyperparams/`` also covers), UDPO
-    as the zoo's ``udpo`` (model class, ``--optimize`` sampler), and :class:`GoalEvalCallback` as the zoo's evaluation
-    (``evaluations.npz`` gets ``final_distances``), and :class:`NormalizedCheckpointCallback` as its checkpoints.
-    """
-    import gymnasium_robotics
-    from rl_zoo3 import ALGOS, exp_manager
-    from rl_zoo3.hyperparams_opt import (
-        HYPERPARAMS_CONVERTER,
-        HYPERPARAMS_SAMPLER,
-        convert_offpolicy_params,
-        sample_sac_params,
-    )
-
-    register_envs()
-    gym.register_envs(gymnasium_robotics)
-    exp_manager.EvalCallback = GoalEvalCallback  # the zoo's evaluations also record the final distance to the goal
-    exp_manager.CheckpointCallback = NormalizedCheckpointCallback
-    if not hasattr(exp_manager.ExperimentManager._preprocess_hyperparams, "__wrapped__"):
-        exp_manager.ExperimentManager._preprocess_hyperparams = _eval_env_like_training(
-            exp_manager.ExperimentManager._preprocess_hyperparams
-        )
-    ALGOS["udpo"] = UDPO
-    HYPERPARAMS_SAMPLER["udpo"] = sample_udpo_params
-    HYPERPARAMS_CONVERTER["udpo"] = convert_offpolicy_params
-    ALGOS["lean_sac"] = LeanSAC
-    HYPERPARAMS_SAMPLER["lean_sac"] = sample_sac_params
-    HYPERPARAMS_CONVERTER["lean_sac"] = convert_offpolicy_params
 
 
 def _with_conf_file(argv: list[str]) -> list[str]:
@@ -254,20 +151,9 @@ def _record_training(argv: list[str], prog: str) -> None:
     args, zoo_argv = parser.parse_known_args(argv)
     if args.output_folder is not None:
         zoo_argv = [*zoo_argv, "--output-folder", str(Path(args.output_folder).resolve())]
-    zoo_call = subprocess.call
-
-    def call(args: list[str], *rest: Any, **kwargs: Any) -> int:
-        if list(args[:3]) == ["python", "-m", "rl_zoo3.record_video"]:
-            args = [sys.executable, "-m", "sb3_pilot.experiments.zoo", "record_video", *args[3:]]
-        return zoo_call(args, *rest, **kwargs)
-
     sys.argv = [prog, *zoo_argv]
-    with _ffmpeg_command():
-        subprocess.call = call  # type: ignore[assignment]
-        try:
-            runpy.run_module("rl_zoo3.record_training", run_name="__main__")
-        finally:
-            subprocess.call = zoo_call
+    with _ffmpeg_command(), record_video_calls_to([sys.executable, "-m", "sb3_pilot.experiments.zoo", "record_video"]):
+        runpy.run_module("rl_zoo3.record_training", run_name="__main__")
 
 
 #: Where ``distill`` writes a planner unless told otherwise, under the zoo's log folder (``-f``):
@@ -290,98 +176,6 @@ def planner_path(folder: str | os.PathLike, env_id: str) -> Path:
     from huggingface_sb3 import EnvironmentName
 
     return Path(folder) / PLANNERS_FOLDER / f"{EnvironmentName(env_id)}.pt"
-
-
-def find_zoo_run(folder: str | os.PathLike, algo: str, env_id: str, exp_id: int = 0) -> Path:
-    """
-    The final model of a zoo run, found as ``enjoy`` finds it: ``<folder>/<algo>/<env name>_<exp_id>/<env name>.zip``.
-
-    :param folder: the zoo's log folder (``-f``)
-    :param algo: the zoo algorithm of the run
-    :param env_id: its task
-    :param exp_id: the run's number (0: the latest)
-    :return: the model's path
-    :raises FileNotFoundError: naming what is missing: any run of ``algo`` on ``env_id`` under ``folder`` (the runs that
-        are there listed), the run ``exp_id``, the run's model
-    """
-    from huggingface_sb3 import EnvironmentName
-    from rl_zoo3.utils import get_latest_run_id
-
-    if exp_id < 0:
-        raise ValueError(f"--exp-id must be a run number (>= 1) or 0 for the latest, got {exp_id}.")
-    env_name = EnvironmentName(env_id)
-    algo_dir = Path(folder) / algo
-    latest = get_latest_run_id(str(algo_dir), env_name)
-    if latest == 0:
-        runs = sorted(f"{path.parent.name}/{path.name}" for path in Path(folder).glob("*/*_[0-9]*") if path.is_dir())
-        raise FileNotFoundError(
-            f"No run of {algo} on {env_id} under {folder} (no folder {algo_dir / env_name}_<N>); runs there: "
-            f"{', '.join(runs) or 'none'}."
-        )
-    run_dir = algo_dir / f"{env_name}_{exp_id or latest}"
-    if not run_dir.is_dir():
-        ids = sorted(int(path.name.rsplit("_", 1)[1]) for path in algo_dir.glob(f"{env_name}_[0-9]*") if path.is_dir())
-        raise FileNotFoundError(f"--exp-id {exp_id}: there is no run {run_dir}; the runs of {algo} on {env_id}: {ids}.")
-    model_path = run_dir / f"{env_name}.zip"
-    if not model_path.is_file():
-        raise FileNotFoundError(
-            f"The run {run_dir} has no model {model_path.name} (the zoo saves it when training ends: was it interrupted?)."
-        )
-    return model_path
-
-
-def zoo_saved(model_path: Path, name: str) -> dict[str, Any]:
-    """
-    A settings file the zoo saved beside a model (``args.yml``: the command line; ``config.yml``: the YAML entry).
-
-    :param model_path: ``<run folder>/<env name>.zip``
-    :param name: the file's name
-    :return: its entries, empty if the file is not there (a model saved without them)
-    """
-    path = model_path.parent / model_path.stem / name
-    if not path.is_file():
-        return {}
-    # the zoo writes OrderedDicts (python tags), read back as its own enjoy script does
-    return dict(yaml.load(path.read_text(), Loader=yaml.UnsafeLoader))
-
-
-def load_zoo_run(
-    model_path: str | os.PathLike, algo: str, env_id: str, seed: int = 0, device: str = "auto", buffer_size: int | None = 1
-) -> tuple[BaseAlgorithm, VecEnv]:
-    """
-    The model of a zoo run, with its env rebuilt as the zoo's ``enjoy`` rebuilds it (``rl_zoo3.create_test_env``): the
-    run's ``env_wrapper`` and ``normalize`` (its saved ``config.yml``), its ``env_kwargs`` (the YAML entry's, replaced by
-    the command line's saved in ``args.yml``) and its ``VecNormalize`` statistics, frozen.
-
-    :param model_path: ``<run folder>/<env name>.zip`` (:func:`find_zoo_run`)
-    :param algo: the zoo algorithm that saved it (``sac``, ``td3``, ``tqc``, ``udpo``, ``lean_sac``, ...)
-    :param env_id: its task
-    :param seed: seed of the env
-    :param device: the model's device
-    :param buffer_size: the replay buffer's size (1: no room is allocated, for a model that acts only; None: the run's)
-    :return: the model (its env attached) and the env
-    """
-    from rl_zoo3 import ALGOS
-    from rl_zoo3.utils import create_test_env, get_saved_hyperparams
-
-    model_path = Path(model_path)
-    saved = model_path.parent / model_path.stem
-    hyperparams, stats_path = get_saved_hyperparams(str(saved), norm_reward=False, test_mode=True)
-    env_kwargs = dict(hyperparams.pop("env_kwargs", None) or {})
-    command_line = zoo_saved(model_path, "args.yml").get("env_kwargs")
-    if command_line is not None:  # the command line's --env-kwargs replaced the YAML's
-        env_kwargs = dict(command_line)
-    env = create_test_env(
-        env_id,
-        stats_path=stats_path,
-        seed=seed,
-        should_render=False,
-        hyperparams=hyperparams,
-        env_kwargs=env_kwargs,
-        vec_env_cls=DummyVecEnv,
-    )
-    kwargs = {} if buffer_size is None else {"buffer_size": buffer_size}
-    return ALGOS[algo].load(model_path, env=env, device=device, **kwargs), env
 
 
 def planner_quality(metadata: dict[str, Any]) -> str:
@@ -520,7 +314,8 @@ def main(argv: list[str] | None = None) -> None:
         from rl_zoo3.train import train
 
         sys.argv = [prog, *_with_conf_file(zoo_argv)]
-        train()
+        with zoo_train_with():  # the zoo's train, building sb3_pilot's ExperimentManager (see zoo_shim)
+            train()
     elif command == "enjoy":
         from rl_zoo3.enjoy import enjoy
 

@@ -21,6 +21,7 @@ from stable_baselines3.common.save_util import load_from_zip_file
 from stable_baselines3.common.type_aliases import GymEnv
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize, is_vecenv_wrapped
 
+from sb3_pilot.common.saved_models import vecnormalize_path, without_replay_buffer
 from sb3_pilot.udpo import UDPO
 
 SelfUDPO = TypeVar("SelfUDPO", bound=UDPO)
@@ -143,8 +144,7 @@ def load_planner_from(
         source_model, source_norm = source, source.get_vec_normalize_env()
     else:
         # Only the policy is needed: no replay buffer (a HER buffer could not be built without the source's env)
-        no_buffer = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}
-        source_model = UDPO.load(source, device="cpu", custom_objects=no_buffer)
+        source_model = UDPO.load(source, device="cpu", custom_objects=without_replay_buffer())
         source_norm = None if source_vec_normalize is None else load_vec_normalize(source_vec_normalize)
 
     venv = BaseAlgorithm._wrap_env(maybe_make_env(env, verbose=0))
@@ -201,8 +201,7 @@ class StatePlannerTransferCallback(BaseCallback):
             if not Path(self.source_vec_normalize).is_file():
                 raise FileNotFoundError(f"source_vec_normalize {self.source_vec_normalize} is no file.")
             return Path(self.source_vec_normalize)
-        source_path = Path(self.source)
-        stats = source_path.parent / source_path.stem / "vecnormalize.pkl"  # where the zoo saves them
+        stats = vecnormalize_path(self.source)  # where the zoo saves them
         return stats if stats.is_file() else None
 
     def _on_training_start(self) -> None:

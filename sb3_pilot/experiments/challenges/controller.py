@@ -23,16 +23,12 @@ import numpy as np
 from stable_baselines3.common.save_util import load_from_zip_file
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+from sb3_pilot.common.saved_models import vecnormalize_path
 from sb3_pilot.common.utils import check_number
 from sb3_pilot.distill import GoalMap, GoalPlanner, share_goal_space
 from sb3_pilot.envs.maze import UMAZE_GOAL_CELL, UMAZE_MAP, UMAZE_START_CELL
-from sb3_pilot.experiments.challenges.stages import (
-    StageContext,
-    load_zoo_model,
-    play_episodes,
-    training_task,
-    vecnormalize_path,
-)
+from sb3_pilot.experiments.challenges.stages import StageContext, play_episodes
+from sb3_pilot.experiments.zoo_run import load_zoo_model, training_task
 from sb3_pilot.transfer import LandmarkGuidance
 
 
@@ -225,7 +221,7 @@ def find_checkpoints(run_dir: Path) -> dict[int, Path]:
 def checkpoint_stats(model_path: Path, steps: int) -> Path:
     """
     Where the ``VecNormalize`` statistics of a zoo model are: beside a checkpoint
-    (:class:`~sb3_pilot.experiments.zoo.NormalizedCheckpointCallback`'s ``rl_model_vecnormalize_<steps>_steps.pkl``),
+    (:class:`~sb3_pilot.experiments.zoo_shim.PilotExperimentManager`'s ``rl_model_vecnormalize_<steps>_steps.pkl``),
     in the saved settings of a final model (:func:`vecnormalize_path`).
 
     :param model_path: the model

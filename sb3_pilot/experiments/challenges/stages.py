@@ -30,12 +30,21 @@ import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import configure
-from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecNormalize
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from sb3_pilot.common.utils import check_number
 from sb3_pilot.distill import distill_goal_planner
 from sb3_pilot.experiments.evaluation import load_final_distances
-from sb3_pilot.experiments.zoo import hyperparams_dir, register, zoo_saved
+from sb3_pilot.experiments.zoo import hyperparams_dir, register
+
+# the zoo-run readers that were defined here, for the modules that import them from here
+from sb3_pilot.experiments.zoo_run import (  # noqa: F401
+    load_zoo_model,
+    training_task,
+    vecnormalize_path,
+    zoo_env_id,
+    zoo_env_kwargs,
+)
 
 #: Marker a finished stage leaves in its folder.
 STAGE_MARKER = "stage.json"
@@ -141,48 +150,6 @@ def zoo_run_dir(stage_dir: Path, algo: str, env_id: str) -> Path:
     return stage_dir / algo / f"{env_id.replace('/', '-')}_1"
 
 
-def vecnormalize_path(model_path: Path) -> Path:
-    """Where the zoo saves the ``VecNormalize`` statistics of ``<run folder>/<env name>.zip`` (if it normalises)."""
-    return model_path.parent / model_path.stem / "vecnormalize.pkl"
-
-
-def _statistics_venv(model_path: Path) -> VecEnv:
-    """The run's task as the zoo wrapped it below its ``VecNormalize`` (:func:`training_task`, then the run's
-    ``vec_env_wrapper``, if any)."""
-    from rl_zoo3.utils import get_wrapper_class
-
-    venv: VecEnv = DummyVecEnv([lambda: training_task(model_path)])
-    wrapper = get_wrapper_class(zoo_saved(model_path, "config.yml"), "vec_env_wrapper")
-    return venv if wrapper is None else wrapper(venv)
-
-
-def load_zoo_model(
-    model_path: Path, env: DummyVecEnv | None = None, algo: str | None = None
-) -> tuple[BaseAlgorithm, VecNormalize | None]:
-    """
-    Load a model the zoo saved, with its ``VecNormalize`` statistics if it has some.
-
-    :param model_path: ``<run folder>/<env name>.zip``, or any SB3 zip with ``algo`` given
-    :param env: the env to attach (needed to load the replay buffer); None loads the policy alone (no buffer)
-    :param algo: the zoo algorithm that saved it (None: as the run's ``args.yml`` records it, else the name of the run
-        folder's parent, as the zoo lays it out)
-    :return: the model and its (frozen) ``VecNormalize`` or None
-    """
-    from rl_zoo3 import ALGOS
-
-    register()  # ``udpo`` among the zoo's algorithms, in whichever process the stage runs
-    algo = algo or _zoo_algo(model_path)
-    stats = vecnormalize_path(model_path)
-    vec_normalize = None
-    if stats.exists():
-        vec_normalize = VecNormalize.load(str(stats), env or _statistics_venv(model_path))
-        vec_normalize.training = False
-    if env is None:  # a HER buffer cannot be built without the env: the policy alone
-        custom = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1}
-        return ALGOS[algo].load(model_path, device="cpu", custom_objects=custom), vec_normalize
-    return ALGOS[algo].load(model_path, env=vec_normalize or env, device="cpu"), vec_normalize
-
-
 def play_episodes(
     model: BaseAlgorithm, vec_normalize: VecNormalize | None, env: gym.Env, episodes: int, seed: int
 ) -> Iterator[tuple[dict[str, np.ndarray], dict[str, Any]]]:
@@ -205,35 +172,6 @@ def play_episodes(
             observation, _, terminated, truncated, info = env.step(action)
             done = terminated or truncated
         yield observation, info
-
-
-def _zoo_algo(model_path: Path) -> str:
-    """
-    The zoo algorithm of a model: as its run's ``args.yml`` records it (a model copied with its saved settings, e.g. a
-    chosen checkpoint), else the name of the run folder's parent (``<algo>/<env name>_<n>/<env name>.zip``).
-    """
-    return str(zoo_saved(model_path, "args.yml").get("algo") or model_path.parent.parent.name)
-
-
-def zoo_env_id(model_path: Path) -> str:
-    """
-    The task of a zoo run's model: as the run's ``args.yml`` records it (any Gymnasium ID), else ``Pilot/X-v0`` from
-    the zoo's ``.../Pilot-X-v0.zip`` (a shipped model).
-    """
-    return str(zoo_saved(model_path, "args.yml").get("env") or model_path.stem.replace("-", "/", 1))
-
-
-def zoo_env_kwargs(model_path: Path) -> dict[str, Any]:
-    """
-    The task options a zoo run trained with: its YAML entry's ``env_kwargs`` (``config.yml``), overridden by the
-    command line's ``--env-kwargs`` (``args.yml``), both saved by the zoo beside the model.
-
-    :param model_path: ``<run folder>/<env name>.zip``
-    """
-    kwargs: dict[str, Any] = {}
-    for name in ("config.yml", "args.yml"):
-        kwargs.update(zoo_saved(model_path, name).get("env_kwargs") or {})
-    return kwargs
 
 
 @dataclass(frozen=True)
@@ -415,22 +353,6 @@ class Distill:
 class ShippedFileMissing(FileNotFoundError):
     """A shipped file (a trained model or planner in the repository's ``zoo_runs/``) is not there: the package was
     installed without the repository."""
-
-
-def training_task(model_path: Path, max_episode_steps: int | None = None) -> gym.Env:
-    """
-    The task a zoo run trained on, rebuilt from its saved settings: its ID, ``env_kwargs`` and ``env_wrapper``.
-
-    :param model_path: the run's final model (its saved settings beside it)
-    :param max_episode_steps: episodes end after this many steps (None: the task's)
-    """
-    from rl_zoo3.utils import get_wrapper_class
-
-    hyperparams = zoo_saved(model_path, "config.yml")
-    kwargs = zoo_env_kwargs(model_path) | ({"max_episode_steps": max_episode_steps} if max_episode_steps else {})
-    env = gym.make(zoo_env_id(model_path), **kwargs)
-    wrapper = get_wrapper_class(hyperparams)
-    return env if wrapper is None else wrapper(env)
 
 
 def shipped_file(path: Path) -> Path:
