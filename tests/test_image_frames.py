@@ -11,11 +11,11 @@ from rl_zoo3.utils import get_wrapper_class
 from stable_baselines3 import SAC, HerReplayBuffer
 from stable_baselines3.common.env_util import make_vec_env
 
-from sb3_pilot.common.torch_layers import PixelGoalSACPolicy
 from sb3_pilot.common.wrappers import ImageFrameStack
 from sb3_pilot.envs import register_envs
 from sb3_pilot.envs.fetch import FetchEnv
 from sb3_pilot.envs.reacher import ReacherEnv
+from sb3_pilot.pixels import PixelGoalSACPolicy
 
 
 def test_frame_stack_stacks_the_image_only() -> None:
