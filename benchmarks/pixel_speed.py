@@ -35,33 +35,38 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import torch as th
+import yaml
 from stable_baselines3 import HerReplayBuffer
 from stable_baselines3.common.env_util import make_vec_env
 
 from sb3_pilot.envs import register_envs
+from sb3_pilot.experiments.zoo import hyperparams_dir
 from sb3_pilot.pixels import PixelGoalSACPolicy
 from sb3_pilot.sac import LeanSAC
 
 ENV_ID = "Pilot/FetchReachImage-v0"
 #: env kwargs of each path
 PATHS: dict[str, dict[str, Any]] = {"old": {"antialias": True}, "new": {"antialias": False}}
-#: hyperparams/image/sac.yml's Pilot/FetchReachImage-v0 entry (the replay buffer sized to the run)
-PRESET: dict[str, Any] = dict(
-    policy_kwargs=dict(features_extractor_kwargs=dict(encoder="nature", random_shift=4)),
-    gamma=0.99,
-    batch_size=64,
-    train_freq=2,
-    gradient_steps=1,
-    learning_rate=3e-4,
-    learning_starts=100,
-    replay_buffer_class=HerReplayBuffer,
-    replay_buffer_kwargs=dict(goal_selection_strategy="future", n_sampled_goal=4),
-)
+#: the preset's settings that the benchmark takes from its YAML entry (the replay buffer is sized to the run)
+PRESET_KEYS = ("gamma", "batch_size", "train_freq", "gradient_steps", "learning_rate", "policy_kwargs")
+#: SB3's SAC default, which the entry keeps
+LEARNING_STARTS = 100
+
+
+def preset() -> dict[str, Any]:
+    """``hyperparams/image/sac.yml``'s ``Pilot/FetchReachImage-v0`` entry as ``LeanSAC`` arguments (as the zoo reads it)."""
+    entry = yaml.safe_load((hyperparams_dir() / "image" / "sac.yml").read_text())[ENV_ID]
+    settings = {key: entry[key] for key in PRESET_KEYS}
+    settings["policy_kwargs"] = eval(settings["policy_kwargs"])  # a string in the YAML, as the zoo evaluates it
+    assert entry["replay_buffer_class"] == "HerReplayBuffer" and entry["n_envs"] == 1, entry
+    replay_buffer_kwargs = eval(entry["replay_buffer_kwargs"])
+    return dict(settings, replay_buffer_class=HerReplayBuffer, replay_buffer_kwargs=replay_buffer_kwargs)
 
 
 def make_model(path: str, buffer_size: int, seed: int = 0) -> LeanSAC:
     env = make_vec_env(ENV_ID, seed=seed, env_kwargs=PATHS[path])
-    return LeanSAC(PixelGoalSACPolicy, env, buffer_size=buffer_size, seed=seed, device="cpu", **PRESET)
+    settings = dict(preset(), learning_starts=LEARNING_STARTS, buffer_size=buffer_size, seed=seed, device="cpu")
+    return LeanSAC(PixelGoalSACPolicy, env, **settings)
 
 
 def encoder_passes(model: LeanSAC, gradient_steps: int = 4) -> float:
@@ -79,8 +84,8 @@ def encoder_passes(model: LeanSAC, gradient_steps: int = 4) -> float:
 
 def time_path(path: str, steps: int) -> dict[str, float]:
     """Env steps per second (wall, CPU) of ``steps`` training steps after ``learning_starts``, and frame times."""
-    model = make_model(path, buffer_size=steps + 2 * PRESET["learning_starts"])
-    model.learn(PRESET["learning_starts"] + 2)
+    model = make_model(path, buffer_size=steps + 2 * LEARNING_STARTS)
+    model.learn(LEARNING_STARTS + 2)
     passes = encoder_passes(model)
     wall, cpu = time.perf_counter(), time.process_time()
     model.learn(steps, reset_num_timesteps=False)
