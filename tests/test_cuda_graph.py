@@ -18,8 +18,8 @@ from stable_baselines3.common.logger import configure
 
 from sb3_pilot import UDPO
 from sb3_pilot.common.cuda_graph import WARMUP_STEPS, CudaGraphUpdate, LossAccumulator, capture_fallback_reason
-from sb3_pilot.common.torch_layers import PixelGoalSACPolicy
 from sb3_pilot.envs import register_envs
+from sb3_pilot.pixels import PixelGoalSACPolicy
 from sb3_pilot.sac import LeanSAC
 from tests.goal_envs import PointGoalEnv
 from tests.image_envs import ImageGoalEnv

@@ -5,7 +5,10 @@ RandomShift (DrQ's augmentation) acts in training only; the auxiliary goal predi
 
 from __future__ import annotations
 
+import base64
 import copy
+import json
+import zipfile
 from typing import Any
 
 import numpy as np
@@ -18,7 +21,9 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.preprocessing import preprocess_obs
 from stable_baselines3.common.torch_layers import CombinedExtractor
 
-from sb3_pilot.common.torch_layers import PixelGoalExtractor, PixelGoalSACPolicy, RandomShift
+from sb3_pilot import pixels
+from sb3_pilot.common.lean import StepHooks
+from sb3_pilot.pixels import PixelGoalExtractor, PixelGoalSACPolicy, RandomShift
 from sb3_pilot.sac import LeanSAC
 
 
@@ -301,7 +306,7 @@ def test_goal_prediction_loss_trains_the_encoder_and_its_head(tmp_path: Any) -> 
     # saved with the policy's kwargs
     model.save(tmp_path / "model.zip")
     loaded = LeanSAC.load(tmp_path / "model.zip", env=ImageGoalEnv(), device="cpu")
-    assert loaded.policy.goal_prediction == 2.0 and loaded.policy.goal_prediction_trained
+    assert loaded.policy.goal_prediction == 2.0 and loaded.policy.step_hooks_attached
     for old, new in zip(head.parameters(), loaded.policy.critic.goal_head.parameters(), strict=True):
         assert th.equal(old, new)
     # SB3's SAC would ignore the loss: refused when training starts
@@ -336,3 +341,53 @@ def test_goal_prediction_bad_input() -> None:
             buffer_size=10,
             policy_kwargs={"features_extractor_class": CombinedExtractor, "goal_prediction": 1.0},
         )
+
+
+# ---------------------------------------- The pixel module and the lean step's extension point
+
+
+def test_lean_step_takes_the_pixel_policy_through_its_hooks() -> None:
+    """LeanSAC calls a policy's StepHooks where it has them (the pixel policy), and no hook of any other policy."""
+    pixel = make_sac("nature", algo=LeanSAC)
+    assert isinstance(pixel.policy, StepHooks) and pixel._step_hooks is pixel.policy and pixel.policy.step_hooks_attached
+    plain = LeanSAC("MultiInputPolicy", ImageGoalEnv(), buffer_size=10, policy_kwargs={"net_arch": [8]}, device="cpu")
+    assert not isinstance(plain.policy, StepHooks) and plain._step_hooks is None
+    # SB3's SAC never attaches them
+    assert not make_sac("nature").policy.step_hooks_attached
+    # the auxiliary losses the pixel policy contributes: none without goal prediction, the weighted one with it
+    assert pixel.policy.critic_auxiliary_losses(None) == {}
+    model = make_sac("nature", algo=LeanSAC, goal_prediction=2.0)
+    model.learn(30)
+    batch = model.replay_buffer.sample(8, env=model._vec_normalize_env)
+    encoded = model.policy.encode(batch.observations)
+    model.policy.critic(encoded, batch.actions)
+    ((name, (weight, loss)),) = model.policy.critic_auxiliary_losses(encoded).items()
+    assert (name, weight) == ("goal_prediction_loss", 2.0)
+    th.testing.assert_close(loss, model.policy.goal_prediction_loss(batch.observations))
+
+
+def test_former_paths_name_the_pixel_classes(tmp_path: Any) -> None:
+    """
+    The classes moved to sb3_pilot.pixels stay importable from sb3_pilot.common(.torch_layers), which the YAML entries
+    name, and a model saved while the policy lived there (its pickled policy class names the old path) loads.
+    """
+    from sb3_pilot import common
+    from sb3_pilot.common import torch_layers
+
+    for name in ("PixelGoalExtractor", "PixelGoalSACPolicy", "RandomShift", "EncodedObservations"):
+        assert getattr(torch_layers, name) is getattr(pixels, name), name
+    assert common.PixelGoalSACPolicy is PixelGoalSACPolicy
+    model = make_sac("nature", algo=LeanSAC)
+    old_module = "sb3_pilot.common.torch_layers"
+    PixelGoalSACPolicy.__module__ = old_module  # pickled by reference, as before the move
+    try:
+        model.save(tmp_path / "old.zip")
+    finally:
+        PixelGoalSACPolicy.__module__ = pixels.policies.__name__
+    with zipfile.ZipFile(tmp_path / "old.zip") as archive:
+        serialized = json.loads(archive.read("data"))["policy_class"][":serialized:"]
+    assert old_module.encode() in base64.b64decode(serialized)
+    loaded = LeanSAC.load(tmp_path / "old.zip", env=ImageGoalEnv(), device="cpu")
+    assert type(loaded.policy) is PixelGoalSACPolicy and loaded._step_hooks is loaded.policy
+    for old, new in zip(model.policy.parameters(), loaded.policy.parameters(), strict=True):
+        assert th.equal(old, new)

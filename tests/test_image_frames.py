@@ -11,11 +11,11 @@ from rl_zoo3.utils import get_wrapper_class
 from stable_baselines3 import SAC, HerReplayBuffer
 from stable_baselines3.common.env_util import make_vec_env
 
-from sb3_pilot.common.torch_layers import PixelGoalSACPolicy
 from sb3_pilot.common.wrappers import ImageFrameStack
 from sb3_pilot.envs import register_envs
 from sb3_pilot.envs.fetch import FetchEnv
 from sb3_pilot.envs.reacher import ReacherEnv
+from sb3_pilot.pixels import PixelGoalSACPolicy
 
 
 def test_frame_stack_stacks_the_image_only() -> None:
@@ -133,3 +133,27 @@ def test_show_target(task: str) -> None:
             assert red(with_target).any() and not (red(with_target) & ~differ).any() and not red(without).any()
     shown.close()
     hidden.close()
+
+
+def test_fetch_frames_without_antialiasing() -> None:
+    """
+    antialias=False draws the same scene with one sample a pixel: same goals, most pixels identical, the others (the
+    edges) a few levels apart on average; the default keeps the model's multisampling (Pilot/FetchReachImage-v0's
+    frames). A vector task refuses the option.
+    """
+    smooth, sharp = FetchEnv("reach", image_size=64), FetchEnv("reach", image_size=64, antialias=False)
+    assert smooth.model.vis.quality.offsamples > 0 and sharp.model.vis.quality.offsamples == 0
+    action = np.array([0.5, -0.5, 0.5, 0.0], dtype=np.float32)
+    for obs_smooth, obs_sharp in (
+        (smooth.reset(seed=3)[0], sharp.reset(seed=3)[0]),
+        (smooth.step(action)[0], sharp.step(action)[0]),
+    ):
+        np.testing.assert_array_equal(obs_smooth["achieved_goal"], obs_sharp["achieved_goal"])
+        np.testing.assert_array_equal(obs_smooth["desired_goal"], obs_sharp["desired_goal"])
+        difference = np.abs(obs_smooth["observation"].astype(int) - obs_sharp["observation"].astype(int)).max(axis=-1)
+        # most pixels alike (> 75% identical), the rest a few levels apart on average: the edges
+        assert (difference == 0).mean() > 0.75 and 0 < difference.mean() < 10, difference.mean()
+    smooth.close()
+    sharp.close()
+    with pytest.raises(ValueError, match="antialias=False is an image task's option"):
+        FetchEnv("reach", antialias=False)

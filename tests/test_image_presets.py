@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import re
 from typing import Any
 
@@ -9,8 +10,8 @@ import numpy as np
 import yaml
 from gymnasium import spaces
 
-from sb3_pilot.common.torch_layers import PixelGoalExtractor, PixelGoalSACPolicy, RandomShift
 from sb3_pilot.experiments.zoo import _with_conf_file, hyperparams_dir
+from sb3_pilot.pixels import PixelGoalExtractor, PixelGoalSACPolicy, RandomShift
 
 IMAGE = hyperparams_dir() / "image"
 IMAGE_TASKS = {"Pilot/ReacherImage-v0": "Pilot-Reacher-v0", "Pilot/FetchReachImage-v0": "Pilot-FetchReach-v0"}
@@ -26,7 +27,8 @@ def test_recipe_settings() -> None:
     sac, pilot = load("sac.yml"), load("sac_pilot.yml")
     assert set(sac) == set(pilot) == set(IMAGE_TASKS)
     for env_id, params in sac.items():
-        assert params["policy"] == f"{PixelGoalSACPolicy.__module__}.{PixelGoalSACPolicy.__name__}"
+        module, name = params["policy"].rsplit(".", 1)  # the class's path, or its former one (still importable)
+        assert getattr(importlib.import_module(module), name) is PixelGoalSACPolicy, env_id
         assert {"batch_size", "train_freq", "gradient_steps", "buffer_size"} <= set(params), env_id
         policy_kwargs = eval(params["policy_kwargs"])  # as the zoo does
         observation_space = spaces.Dict(

@@ -7,7 +7,7 @@ losses and same numbers as SB3's ``SAC.train`` (up to float rounding), fewer ker
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import torch as th
 from stable_baselines3.common.buffers import ReplayBuffer
@@ -140,6 +140,31 @@ def q_values(critic: BaseModel, observations: PyTorchObs, actions: th.Tensor) ->
     return th.stack(critic(observations, actions))
 
 
+@runtime_checkable
+class StepHooks(Protocol):
+    """
+    The extension point of the lean gradient step (:class:`LeanSACSteps`): a policy that has these members takes part
+    in every gradient step of :class:`~sb3_pilot.sac.LeanSAC`; any other policy leaves the step as SAC's. The pixel
+    policy :class:`~sb3_pilot.pixels.PixelGoalSACPolicy` has them: its image encoder runs once per step, and its
+    auxiliary goal prediction joins the critic's loss.
+    """
+
+    #: set to True by the algorithm that calls the hooks (so that a policy may refuse to train without them)
+    step_hooks_attached: bool
+
+    def encode(self, observations: PyTorchObs) -> Any:
+        """
+        :param observations: the batch's observations ``s``, once per gradient step
+        :return: what the policy's actor and critic read in their place in this step (e.g. their features)
+        """
+
+    def critic_auxiliary_losses(self, observations: Any) -> dict[str, tuple[float, th.Tensor]]:
+        """
+        :param observations: what :meth:`encode` returned, after the critic's loss pass on it
+        :return: losses to add to the critic's, by name (logged as ``train/<name>``), each with its weight
+        """
+
+
 class LeanSACSteps:
     """
     The steps of SAC's update that UDPO shares, as methods of an SB3 off-policy algorithm that has SAC's attributes
@@ -164,13 +189,26 @@ class LeanSACSteps:
     device: th.device
     #: the gradient step captured as CUDA graphs (:mod:`sb3_pilot.common.cuda_graph`), where an algorithm opts in
     _cuda_graph_update: Any = None
-    #: weight of the policy's goal-prediction loss in the critic's loss (0: none; set by the algorithm)
-    _goal_prediction: float = 0.0
+    #: the policy's part in each gradient step (:class:`StepHooks`), where it has one (:meth:`_attach_step_hooks`)
+    _step_hooks: StepHooks | None = None
 
     def _use_lean_her(self) -> None:
         """Sample HER batches with :class:`~sb3_pilot.common.buffers.LeanHerReplayBuffer` where SB3's is asked for."""
         if self.replay_buffer_class is HerReplayBuffer:
             self.replay_buffer_class = LeanHerReplayBuffer
+
+    def _attach_step_hooks(self) -> None:
+        """Take the policy's :class:`StepHooks` into the gradient step, where it has them."""
+        self._step_hooks = self.policy if isinstance(self.policy, StepHooks) else None  # type: ignore[attr-defined]
+        if self._step_hooks is not None:
+            self._step_hooks.step_hooks_attached = True
+
+    def _encode(self, observations: PyTorchObs) -> Any:
+        """
+        :param observations: the batch's observations
+        :return: the policy's encoding of them for this gradient step (:meth:`StepHooks.encode`), or themselves
+        """
+        return observations if self._step_hooks is None else self._step_hooks.encode(observations)
 
     def _entropy_coef_step(self, log_prob: th.Tensor, losses: LossRecorder) -> th.Tensor:
         """
@@ -200,9 +238,9 @@ class LeanSACSteps:
     ) -> None:
         """
         SAC's critic step: loss ``1/2 sum_i mean_batch (Q_i(s, a) - y)^2`` for the TD target ``y``, one optimizer step
-        (plus the policy's goal-prediction loss, weighted, where it has one: ``PixelGoalSACPolicy(goal_prediction=...)``).
+        (plus the policy's auxiliary losses, weighted, where it has them: :meth:`StepHooks.critic_auxiliary_losses`).
 
-        :param observations: observations ``s`` of the batch
+        :param observations: observations ``s`` of the batch (or the policy's encoding of them, :meth:`_encode`)
         :param actions: the buffer's actions ``a``
         :param target_q_values: the TD targets ``y``, shape ``(batch, 1)``
         :param losses: where the loss is logged
@@ -210,11 +248,10 @@ class LeanSACSteps:
         current_q_values = q_values(self.critic, observations, actions)
         critic_loss = 0.5 * ((current_q_values - target_q_values) ** 2).mean(dim=(1, 2)).sum()
         losses.add("critic_loss", critic_loss)
-        if self._goal_prediction:
-            # Goal prediction loss (a pixel policy's auxiliary loss): mean ||g_hat(phi(s)) - achieved_goal||^2
-            goal_prediction_loss = self.policy.goal_prediction_loss(observations)
-            losses.add("goal_prediction_loss", goal_prediction_loss)
-            critic_loss = critic_loss + self._goal_prediction * goal_prediction_loss
+        if self._step_hooks is not None:
+            for name, (weight, loss) in self._step_hooks.critic_auxiliary_losses(observations).items():
+                losses.add(name, loss)
+                critic_loss = critic_loss + weight * loss
         self.critic.optimizer.zero_grad()
         critic_loss.backward()
         self.critic.optimizer.step()
@@ -282,7 +319,7 @@ class LeanSACSteps:
         super().dump_logs()  # type: ignore[misc]
 
     def _excluded_save_params(self) -> list[str]:
-        excluded = ["_critic_parameters", "_critic_target_parameters", "_cuda_graph_update"]
+        excluded = ["_critic_parameters", "_critic_target_parameters", "_cuda_graph_update", "_step_hooks"]
         return [*super()._excluded_save_params(), *excluded]  # type: ignore[misc]
 
     def _gradient_step(self, replay_data: Any, losses: LossRecorder) -> None:

@@ -15,7 +15,7 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.preprocessing import is_image_space, is_image_space_channels_first
 
-from sb3_pilot.common.torch_layers import IMAGE_KEY
+from sb3_pilot.pixels.encoder import IMAGE_KEY
 
 
 class ImageFrameStack(gym.Wrapper):

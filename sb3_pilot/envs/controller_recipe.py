@@ -17,7 +17,7 @@ from typing import Any, SupportsFloat
 import gymnasium as gym
 import numpy as np
 
-from sb3_pilot.common.utils import check_number
+from sb3_pilot.checks import check_number
 from sb3_pilot.envs.locomotion import ant_up_z
 
 

@@ -61,7 +61,10 @@ class FetchEnv(GoalReachingMixin, gym.Env):
     :func:`high_dim_action_transform`, and gravity is 80% of the original (``model.opt.gravity``).
     ``image_size``: the ``observation`` entry is the uint8 ``image_size x image_size x 3`` frame rendered
     off-screen (``IMAGE_CAMERA_CONFIG``, the target drawn in red unless ``show_target`` is False), the goals stay
-    3D vectors.
+    3D vectors. ``antialias=False`` draws those frames without multisampling: about 3x cheaper on CPU rendering
+    (osmesa), the same scene with unsmoothed edges (``docs/results/speed.md``); ``Pilot/FetchReachImage-v0``'s frames
+    keep it (the default), so that its committed runs re-create: ask for cheap frames with
+    ``env_kwargs: {antialias: false}``.
 
     :param task: ``"reach"`` or ``"push"``
     :param high_dim: use the High-Dim action dynamics and gravity
@@ -69,6 +72,7 @@ class FetchEnv(GoalReachingMixin, gym.Env):
     :param render_mode: ``"rgb_array"``, ``"human"`` (vector observation only) or None
     :param show_target: whether rendered frames draw the target (False: the goal is in ``desired_goal`` only, so a
         frame never shows another target than a relabelled goal)
+    :param antialias: whether image frames are drawn with 4x multisampling (see above; image tasks only)
     """
 
     metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}  # noqa: RUF012
@@ -80,12 +84,15 @@ class FetchEnv(GoalReachingMixin, gym.Env):
         image_size: int | None = None,
         render_mode: str | None = None,
         show_target: bool = True,
+        antialias: bool = True,
     ):
         from gymnasium_robotics.envs.fetch.push import MujocoFetchPushEnv
         from gymnasium_robotics.envs.fetch.reach import MujocoFetchReachEnv
 
         if task not in FETCH_TASKS:
             raise ValueError(f"task must be one of {FETCH_TASKS}, got {task!r}")
+        if image_size is None and not antialias:
+            raise ValueError("antialias=False is an image task's option (image_size); vector observations draw no frames.")
         fetch_class = MujocoFetchReachEnv if task == "reach" else MujocoFetchPushEnv
         if image_size is None:
             check_render_mode(render_mode, ("human", "rgb_array"))
@@ -108,7 +115,9 @@ class FetchEnv(GoalReachingMixin, gym.Env):
             self.fetch.model.opt.gravity[:] *= HIGH_DIM_GRAVITY_SCALE
         if not show_target:
             self.fetch.model.site_rgba[self.fetch.model.site("target0").id, 3] = 0.0  # MuJoCo draws no site of alpha 0
-        self.image_renderer = None if image_size is None else ImageRenderer(self.fetch.model, image_size, IMAGE_CAMERA_CONFIG)
+        self.image_renderer = (
+            None if image_size is None else ImageRenderer(self.fetch.model, image_size, IMAGE_CAMERA_CONFIG, antialias)
+        )
 
     @property
     def goal_space_id(self) -> str:  # type: ignore[override]

@@ -13,7 +13,6 @@ from stable_baselines3.sac import policies as sac_policies
 from sb3_pilot.common.cuda_graph import CudaGraphUpdate
 from sb3_pilot.common.distributions import reparameterised_log_prob
 from sb3_pilot.common.lean import LeanSACSteps, LossRecorder, check_update_settings
-from sb3_pilot.common.torch_layers import EncodedObservations, PixelGoalSACPolicy
 from sb3_pilot.sac.policies import CnnPolicy, LeanSACPolicy, MlpPolicy, MultiInputPolicy
 
 #: SB3's SAC policy classes and their lean twins
@@ -37,10 +36,11 @@ class LeanSAC(LeanSACSteps, SAC):
     SB3's ``HerReplayBuffer`` is replaced by :class:`~sb3_pilot.common.buffers.LeanHerReplayBuffer` (same samples),
     and SB3's own SAC policy classes by their lean twins (:mod:`sb3_pilot.sac.policies`), so models saved by
     SB3's ``SAC`` load into it (their twin critics are stacked on load). Other ``SACPolicy`` subclasses (whose critic
-    is not an ensemble) work too, with the other cuts. With :class:`~sb3_pilot.common.PixelGoalSACPolicy` the batch's
-    observations go through the shared encoder once per gradient step, as in DrQ-v2 (its ``encode``; SB3's ``SAC``
-    encodes them three times): the actor and the actor's loss read the critic's features, detached, from before the
-    critic's update; 3 encoder passes a step instead of 5.
+    is not an ensemble) work too, with the other cuts. A policy with the lean step's hooks
+    (:class:`~sb3_pilot.common.lean.StepHooks`) takes part in each gradient step: with
+    :class:`~sb3_pilot.pixels.PixelGoalSACPolicy` the batch's observations go through the shared encoder once per
+    gradient step, as in DrQ-v2 (SB3's ``SAC`` encodes them three times): the actor and the actor's loss read the
+    critic's features, detached, from before the critic's update; 3 encoder passes a step instead of 5.
 
     :param policy: ``"MlpPolicy"``, ``"CnnPolicy"``, ``"MultiInputPolicy"`` or a ``SACPolicy`` class
     :param env: the environment to learn from (a Gymnasium ID, an env or a VecEnv)
@@ -153,10 +153,7 @@ class LeanSAC(LeanSACSteps, SAC):
         self.policy_class = LEAN_POLICIES.get(self.policy_class, self.policy_class)
         self._use_lean_her()
         super()._setup_model()
-        # a pixel policy's auxiliary goal prediction (PixelGoalSACPolicy), added to the critic's loss
-        self._goal_prediction = getattr(self.policy, "goal_prediction", 0.0)
-        if self._goal_prediction:
-            self.policy.goal_prediction_trained = True
+        self._attach_step_hooks()
         self._cuda_graph_update = CudaGraphUpdate.for_model(self, self._optimizers()) if self.cuda_graphs else None
 
     def _optimizers(self) -> list[th.optim.Optimizer]:
@@ -206,10 +203,9 @@ class LeanSAC(LeanSACSteps, SAC):
         """
         if self.use_sde:  # a new noise matrix per step (gSDE is never captured)
             self.actor.reset_noise()
-        observations: PyTorchObs | EncodedObservations = replay_data.observations
-        if isinstance(self.policy, PixelGoalSACPolicy):
-            # phi(s) once (DrQ-v2): trained by the critic's loss below, read detached by the actor and its loss
-            observations = self.policy.encode(observations)
+        # the policy's encoding of s, once (a pixel policy's phi(s), DrQ-v2): trained by the critic's loss below, read
+        # detached by the actor and its loss
+        observations = self._encode(replay_data.observations)
         # Action by the current actor for the sampled states
         actions_pi, log_prob = self.action_log_prob(observations)
         log_prob = log_prob.reshape(-1, 1)

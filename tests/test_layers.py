@@ -1,0 +1,33 @@
+"""One-way imports between the package's folders: the tasks and the pixel agents stand on the argument checks alone."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "sb3_pilot"
+
+
+def package_imports(path: Path) -> set[str]:
+    """The ``sb3_pilot`` modules a source file imports (at any depth of its code)."""
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module)
+        elif isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+    return {name for name in names if name.split(".")[0] == "sb3_pilot"}
+
+
+@pytest.mark.parametrize(("folder", "allowed"), [("envs", ("sb3_pilot.envs",)), ("pixels", ("sb3_pilot.pixels",))])
+def test_folder_imports_only_itself_and_the_checks(folder: str, allowed: tuple[str, ...]) -> None:
+    """No arrow from envs/ (or pixels/) up into common/ or any other folder: only their own modules and the checks."""
+    for path in sorted((PACKAGE / folder).glob("*.py")):
+        foreign = {name for name in package_imports(path) if name != "sb3_pilot.checks" and not name.startswith(allowed)}
+        assert not foreign, f"{path.name} imports {sorted(foreign)}"
+
+
+def test_the_sac_core_knows_no_pixel_policy() -> None:
+    """The lean SAC step reaches a pixel policy through its extension point (StepHooks), never by importing it."""
+    for path in [PACKAGE / "common" / "lean.py", *sorted((PACKAGE / "sac").glob("*.py"))]:
+        assert not {name for name in package_imports(path) if "pixels" in name or "torch_layers" in name}, path.name
