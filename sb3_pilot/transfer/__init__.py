@@ -4,7 +4,7 @@ under another action space, and zero-shot landmark guidance of a pre-trained con
 """
 
 from sb3_pilot.transfer.bonus import SIMILARITIES, PilotBonusWrapper, PilotHerReplayBuffer
-from sb3_pilot.transfer.guidance import LandmarkGuidance
+from sb3_pilot.transfer.guidance import LandmarkGuidance, horizon_for_lead, landmark_leads
 from sb3_pilot.transfer.state_planner import StatePlannerTransferCallback, load_planner_from
 
 __all__ = [
@@ -13,5 +13,7 @@ __all__ = [
     "PilotBonusWrapper",
     "PilotHerReplayBuffer",
     "StatePlannerTransferCallback",
+    "horizon_for_lead",
+    "landmark_leads",
     "load_planner_from",
 ]

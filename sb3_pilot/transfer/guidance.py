@@ -101,3 +101,51 @@ class LandmarkGuidance(gym.Wrapper):
         guided = self._guide(observation)
         info["landmark"], info["real_desired_goal"] = guided["desired_goal"], self.real_desired_goal
         return guided, reward, terminated, truncated, info
+
+
+def landmark_leads(
+    env: gym.Env, planner: GoalPlanner | str | os.PathLike, max_horizon: int = 10, episodes: int = 100, seed: int = 0
+) -> np.ndarray:
+    """
+    How far ahead of the agent the ``k``-th chained landmark lies, ``k = 1 .. max_horizon``: the median over the
+    task's own start and goal pairs (``episodes`` resets of ``env``, seeds ``10_000 * seed + i``) of
+    ``||landmark_k - achieved_goal||``, in the env's goal units (through the planner's goal map, if any).
+
+    :param env: the goal env to guide in
+    :param planner: the goal planner, or its file
+    :param max_horizon: the largest ``k``
+    :param episodes: start and goal pairs
+    :param seed: seed of the resets
+    :return: the median lead at each ``k``, shape (max_horizon,)
+    """
+    check_number("max_horizon", max_horizon, minimum=1, integer=True)
+    check_number("episodes", episodes, minimum=1, integer=True)
+    goal_planner, goal_map = GoalPlanner.for_env(planner, env)
+    pairs = [env.reset(seed=10_000 * seed + episode)[0] for episode in range(episodes)]
+    starts = np.array([pair["achieved_goal"] for pair in pairs], dtype=np.float64)
+    goals = np.array([pair["desired_goal"] for pair in pairs], dtype=np.float64)
+
+    def chained(achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
+        return goal_planner.plan(achieved_goal, desired_goal, horizon=max_horizon, snap=False)
+
+    landmarks = chained(starts, goals) if goal_map is None else goal_map.through(chained, starts, goals)
+    return np.median(np.linalg.norm(landmarks - starts[:, None], axis=-1), axis=0)
+
+
+def horizon_for_lead(
+    env: gym.Env, planner: GoalPlanner | str | os.PathLike, lead: float, max_horizon: int = 10, episodes: int = 100
+) -> int:
+    """
+    The guidance horizon ``k`` whose landmark lies closest to ``lead`` ahead of the agent (:func:`landmark_leads`): a
+    controller trained on goals about ``lead`` away is shown landmarks about that far, whatever the planner's step.
+
+    :param env: the goal env to guide in
+    :param planner: the goal planner, or its file
+    :param lead: the wanted distance of the landmark, in the env's goal units
+    :param max_horizon: the largest ``k`` considered
+    :param episodes: start and goal pairs the leads are measured on
+    :return: ``k`` (ties to the smaller)
+    """
+    check_number("lead", lead, minimum=0, strict=True)
+    leads = landmark_leads(env, planner, max_horizon=max_horizon, episodes=episodes)
+    return int(np.argmin(np.abs(leads - lead))) + 1

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import re
 import shutil
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,10 +27,11 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 from sb3_pilot.common.saved_models import vecnormalize_path
 from sb3_pilot.common.utils import check_number
 from sb3_pilot.distill import GoalMap, GoalPlanner, share_goal_space
+from sb3_pilot.envs.locomotion import ant_of, check_same_ant
 from sb3_pilot.envs.maze import UMAZE_GOAL_CELL, UMAZE_MAP, UMAZE_START_CELL
 from sb3_pilot.experiments.challenges.stages import StageContext, play_episodes
-from sb3_pilot.experiments.zoo_run import load_zoo_model, training_task
-from sb3_pilot.transfer import LandmarkGuidance
+from sb3_pilot.experiments.zoo_run import load_zoo_model, training_task, zoo_saved
+from sb3_pilot.transfer import LandmarkGuidance, horizon_for_lead
 
 
 def far_umaze_map() -> list[list[int | str]]:
@@ -43,6 +45,30 @@ def far_umaze_map() -> list[list[int | str]]:
     cells[UMAZE_START_CELL[0]][UMAZE_START_CELL[1]] = "r"
     cells[UMAZE_GOAL_CELL[0]][UMAZE_GOAL_CELL[1]] = "g"
     return cells
+
+
+def check_controller_ant(model_path: Path, task: gym.Env) -> None:
+    """
+    Refuse a controller trained on one Ant (``Pilot/...-v0``: gymnasium's) guided on a task of the other (``-v1``: the
+    literature's), where its zoo run's saved settings say which task it trained on; warn where nothing says it.
+
+    :param model_path: the controller's zip
+    :param task: the task it is to act in
+    :raises ValueError: from :func:`~sb3_pilot.envs.locomotion.check_same_ant`
+    """
+    guided = ant_of(task)
+    if guided is None:
+        return
+    if not zoo_saved(model_path, "args.yml").get("env"):
+        warnings.warn(
+            f"{model_path} has no zoo settings beside it that say which Ant it was trained on: make sure it is the "
+            f"one of the task it is guided on ({guided!r}, sb3_pilot.envs.locomotion.ANT_XML_FILES).",
+            stacklevel=2,
+        )
+        return
+    trained = training_task(model_path)
+    check_same_ant(trained, task, controller_name=str(model_path))
+    trained.close()
 
 
 def reported_success(info: dict[str, Any]) -> float:
@@ -72,6 +98,8 @@ class ControllerEvaluation:
     :param goal_scale: the planner's goals map to the task's by this scale (``share_goal_space`` with
         ``GoalMap(goal_scale)`` between the planner's source task and ``env_id``); None: the same coordinates
     :param horizon: chained planner steps to the landmark (``LandmarkGuidance``'s ``horizon``)
+    :param lead: if set, ``horizon`` is chosen for each seed's planner instead: the ``k`` whose landmark lies about
+        ``lead`` ahead on the task (:func:`~sb3_pilot.transfer.horizon_for_lead`), written to ``guidance.json``
     :param switch_distance: distance to the real goal under which it replaces the landmark (``LandmarkGuidance``'s)
     :param episodes: episodes a seed (None: the budget's ``eval_episodes``); at a budget with steps for this stage
         (``smoke``), the budget's ``eval_episodes``, each ending after that many steps
@@ -92,6 +120,13 @@ class ControllerEvaluation:
     episodes: int | None = None
     controller_algo: str | None = None
     compared_with: str | None = None
+    lead: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.lead is not None:
+            check_number(f"{self.name}: lead", self.lead, minimum=0, strict=True)
+            if self.planner is None:
+                raise ValueError(f"{self.name}: lead chooses the guidance horizon, it needs a planner")
 
     @property
     def needs(self) -> tuple[str, ...]:
@@ -107,7 +142,8 @@ class ControllerEvaluation:
             if self.switch_distance is None
             else f"the real goal once it is within {self.switch_distance}"
         )
-        return {"horizon": self.horizon, "switch_distance": self.switch_distance, "switch_rule": switch}
+        horizon: int | str = self.horizon if self.lead is None else f"chosen per seed: the landmark ~{self.lead} ahead"
+        return {"horizon": horizon, "switch_distance": self.switch_distance, "switch_rule": switch}
 
     def output(self, stage_dir: Path) -> Path:
         """The evaluation's result file."""
@@ -131,10 +167,11 @@ class ControllerEvaluation:
             "episodes": self.n_episodes(ctx),
             "max_episode_steps": ctx.steps.get(self.name),
             "seed": ctx.seed,
-        }
+        } | ({} if self.lead is None else {"lead": self.lead})  # only then: the other stages' hashes stay
 
     def describe(self, ctx: StageContext, stage_dir: Path) -> str:
-        guide = "unguided" if self.planner is None else f"guided by {self.planner} (k={self.horizon})"
+        horizon = f"k={self.horizon}" if self.lead is None else f"k for a lead of {self.lead}"
+        guide = "unguided" if self.planner is None else f"guided by {self.planner} ({horizon})"
         return f"{self.controller} on {self.env_id}, {guide}, {self.n_episodes(ctx)} episodes"
 
     def make_env(self, ctx: StageContext) -> gym.Env:
@@ -146,7 +183,8 @@ class ControllerEvaluation:
         planner = GoalPlanner.load(ctx.outputs[self.planner])
         if self.goal_scale is not None:
             share_goal_space(str(planner.source_task), self.env_id, goal_map=GoalMap(self.goal_scale))
-        return LandmarkGuidance(task, planner, horizon=self.horizon, switch_distance=self.switch_distance)
+        horizon = self.horizon if self.lead is None else horizon_for_lead(task, planner, self.lead)
+        return LandmarkGuidance(task, planner, horizon=horizon, switch_distance=self.switch_distance)
 
     def run(self, ctx: StageContext, stage_dir: Path) -> None:
         """Run the controller for :meth:`n_episodes` episodes (deterministic actions)."""
@@ -155,6 +193,7 @@ class ControllerEvaluation:
         register()  # gymnasium-robotics' tasks, in the stage's process
         controller, vec_normalize = load_zoo_model(ctx.outputs[self.controller], algo=self.controller_algo)
         env = self.make_env(ctx)
+        check_controller_ant(ctx.outputs[self.controller], env)
         successes, final_distances, episodes = [], [], []
         for observation, info in play_episodes(controller, vec_normalize, env, self.n_episodes(ctx), ctx.seed):
             successes.append(reported_success(info))
@@ -173,6 +212,8 @@ class ControllerEvaluation:
             "successes": successes,
             "final_distances": final_distances,
         }
+        if isinstance(env, LandmarkGuidance):
+            result["horizon"] = env.horizon
         self.output(stage_dir).write_text(json.dumps({**result, "episodes": episodes}))
 
     def curve(self, stage_dir: Path) -> tuple[list[int], list[float]]:

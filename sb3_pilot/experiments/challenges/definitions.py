@@ -213,6 +213,23 @@ def _wall_margin(outputs: dict[str, Path]) -> dict[str, Any]:
     return {"env_wrapper": [{f"{WallMarginWrapper.__module__}.{WallMarginWrapper.__qualname__}": {"margin": 1.0}}]}
 
 
+#: The Maze2D goal planner of Zero-shot Ant-Maze (both Ants). Starts and goals uniform over the maze, so the planner knows
+#: its geometry everywhere (the paper queries it from arbitrary start goals); trained on the far goal alone, UDPO saw no
+#: success in 12k of its 20k cpu steps and gives a planner with nothing to distil. Steps near a wall cost more
+#: (WallMarginWrapper): the point slides along walls for free, the Ant's legs do not.
+ZERO_SHOT_PLANNER_STAGES = (
+    ZooTrain(
+        "maze",
+        "udpo",
+        "Pilot/Maze2D-v0",
+        "udpo.yml",
+        params=_wall_margin,
+        save_replay_buffer=True,
+        env_kwargs={"goal_distribution": "uniform"},
+    ),
+    Distill("distill", "maze"),
+)
+
 HER, PLANNER_TRANSFER = "SAC+HER (scratch)", "UDPO+PILoT (planner transfer)"
 #: MEGA (Pitis et al., 2020) on SAC+HER: the paper's exploration baseline (:mod:`sb3_pilot.baselines`).
 HER_MEGA = "SAC+HER+MEGA (baseline)"
@@ -533,20 +550,7 @@ CHALLENGES: dict[str, Challenge] = {
             "SAC+HER trained on Ant-Maze for as many steps",
             "Pilot/AntMaze-v0",
             (
-                # starts and goals uniform over the maze, so the planner knows its geometry everywhere (the paper
-                # queries it from arbitrary start goals); trained on the far goal alone, UDPO saw no success in
-                # 12k of its 20k cpu steps and gives a planner with nothing to distil. Steps near a wall cost more
-                # (WallMarginWrapper): the point slides along walls for free, the Ant's legs do not
-                ZooTrain(
-                    "maze",
-                    "udpo",
-                    "Pilot/Maze2D-v0",
-                    "udpo.yml",
-                    params=_wall_margin,
-                    save_replay_buffer=True,
-                    env_kwargs={"goal_distribution": "uniform"},
-                ),
-                Distill("distill", "maze"),
+                *ZERO_SHOT_PLANNER_STAGES,
                 # the shipped controller's recipe: starts and headings anywhere, goals 0.5-3 units away that move
                 # on, 500-step episodes ending on a flip, goal-relative inputs (zoo_runs/zero-shot-ant-maze/controller);
                 # a checkpoint kept every seventh of its steps (every 50k at the cpu budget)
@@ -591,6 +595,42 @@ CHALLENGES: dict[str, Challenge] = {
                 # recipe was made (hyperparams/cpu/ant_controller_upright.yml's header); training on to 450k was not a
                 # measured gain (zoo_runs/zero-shot-ant-maze/controller_450k)
                 "cpu": {"maze": 20_000, "controller": 350_000, "her": 350_000, "mega": 350_000},
+            },
+        ),
+        Challenge(
+            "zero-shot-ant-maze-v1",
+            "UDPO on 2D-Maze (wall margin 1) -> distilled goal planner guiding an open-ground SAC controller of the "
+            "literature's Ant (cpu/ant_controller_upright.yml on Pilot/AntLocomotion-v1) on Ant-Maze-v1 (0 Ant-Maze "
+            "steps), vs the same controller unguided",
+            "Pilot/AntMaze-v1",
+            (
+                # the v0 challenge's planner stages, unchanged (the planner knows nothing of the Ant)
+                *ZERO_SHOT_PLANNER_STAGES,
+                # the v0 challenge's recipe on the literature's Ant (its YAML entry: the same settings); a checkpoint
+                # every 50k steps at the cpu budget
+                ZooTrain("controller", "sac", "Pilot/AntLocomotion-v1", "ant_controller_upright.yml", checkpoints=4),
+                ChooseCheckpoint("chosen", "controller", episodes=30),
+                # the horizon of each seed's planner: its landmark about 1 unit ahead, the lead that guided the sizing
+                # controller best (zoo_runs/ant-v1-controller/README.md)
+                ControllerEvaluation(
+                    "pilot",
+                    "chosen",
+                    "Pilot/AntMaze-v1",
+                    "PILoT zero-shot (0 Ant-Maze steps)",
+                    planner="distill",
+                    lead=1.0,
+                    episodes=30,
+                    compared_with="unguided",
+                ),
+                ControllerEvaluation(
+                    "unguided", "chosen", "Pilot/AntMaze-v1", "the controller unguided (0 Ant-Maze steps)", episodes=30
+                ),
+            ),
+            steps={
+                "smoke": {"maze": 300, "controller": 500, "chosen": 50, "pilot": 500, "unguided": 500},
+                # the controller's budget from its sizing runs (zoo_runs/ant-v1-controller/README.md), fixed before
+                # any of this challenge's seeds
+                "cpu": {"maze": 20_000, "controller": 200_000},
             },
         ),
     )
