@@ -107,7 +107,7 @@ def test_installed_package_reads_its_own_presets(installed: Path, tmp_path: Path
 def test_installed_smoke_challenge_runs_outside_the_checkout(installed: Path, tmp_path: Path) -> None:
     """``python -m sb3_pilot.experiments.challenges high-dim-action --budget smoke`` from the wheel, in an empty folder."""
     args = ["-m", "sb3_pilot.experiments.challenges", "high-dim-action", "--budget", "smoke", "--no-progress"]
-    result = run_installed(installed, tmp_path, *args, timeout=1200)
+    result = run_installed(installed, tmp_path, *args, timeout=3600)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     summary = json.loads((tmp_path / "runs" / "high-dim-action" / "summary.json").read_text())
     assert summary["seeds"] == [0] and len(summary["methods"]) == 2
@@ -118,7 +118,7 @@ def test_installed_demo_runs_what_needs_no_shipped_file(installed: Path, tmp_pat
     """The demo from the wheel, tiny budgets: the planner transfer runs; the reward bonus, which reads the repository's
     shipped planner, is skipped with a message naming the clone."""
     steps = ["--source-steps", "300", "--steps", "300", "--bonus-steps", "300", "--bonus-seeds", "1"]
-    result = run_installed(installed, tmp_path, "-m", "sb3_pilot.experiments.demo", *steps, timeout=1200)
+    result = run_installed(installed, tmp_path, "-m", "sb3_pilot.experiments.demo", *steps, timeout=3600)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     assert "Target Pilot/FetchReachHighDim-v0" in result.stdout
     assert "clone of the repository" in result.stdout
