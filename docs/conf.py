@@ -40,3 +40,6 @@ intersphinx_mapping: dict[str, tuple[str, None]] = {}
 
 html_theme = "sphinx_rtd_theme"
 html_title = f"sb3-pilot {release}"
+# long code lines and table cells wrap instead of scrolling sideways
+html_static_path = ["_static"]
+html_css_files = ["wrap.css"]

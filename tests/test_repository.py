@@ -177,3 +177,17 @@ def test_guided_video_without_the_shipped_files(tmp_path: Path, capsys: pytest.C
             guided_video.main(["--output", str(tmp_path / "video.gif")])
     assert "clone of the repository" in capsys.readouterr().err
     assert not (tmp_path / "video.gif").exists()
+
+
+def test_changelog_is_per_version_and_names_the_package_version() -> None:
+    """``CHANGELOG.md`` has one section per version, newest first: at most one ``Unreleased`` section on top, then the
+    version ``sb3_pilot.__version__`` says; each section split by kind of change only (Added, Changed, Removed...)."""
+    from sb3_pilot.version import __version__
+
+    text = (ROOT / "CHANGELOG.md").read_text()
+    versions = re.findall(r"^## (.+)$", text, flags=re.MULTILINE)
+    released = [version for version in versions if not version.startswith("Unreleased")]
+    assert released and released[0] == __version__, f"CHANGELOG's latest release {released[:1]}, the package's {__version__}"
+    assert versions.index(released[0]) == sum(version.startswith("Unreleased") for version in versions) <= 1
+    kinds = set(re.findall(r"^### (.+)$", text, flags=re.MULTILINE))
+    assert kinds <= {"Added", "Changed", "Deprecated", "Removed", "Fixed", "Security"}, kinds

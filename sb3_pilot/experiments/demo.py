@@ -25,6 +25,8 @@ their areas under the success curve beside the run of the same stages committed 
 On a terminal each run shows a live table of its running stages (env steps, elapsed, ETA); each stage's output and
 command line go to its folder. Reruns resume: finished stages are skipped. ``--source-steps`` / ``--steps`` override
 the High-Dim-Action budget's step counts, ``--bonus-steps`` the Maze-Car ones; ``--bonus-seeds 0`` skips the bonus.
+Installed from a wheel, without the repository's ``zoo_runs/``, the demo runs the planner transfer and skips the
+bonus, saying why.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from typing import Any
 
 from sb3_pilot.experiments.challenges import CHALLENGES, REUSE_SHIPPED, only_stages, run_challenge
 from sb3_pilot.experiments.challenges.definitions import HER, PILOT_DISPLACEMENT, PLANNER_TRANSFER
-from sb3_pilot.experiments.challenges.stages import REPO_DIR
+from sb3_pilot.experiments.challenges.stages import REPO_DIR, ShippedFileMissing
 from sb3_pilot.experiments.plots import plot_challenge
 from sb3_pilot.experiments.statistics import run_scores
 
@@ -152,7 +154,10 @@ def main(argv: list[str] | None = None) -> None:
     start = time.perf_counter()
     pngs = planner_transfer(args.root, args.seed, args.source_steps, args.steps)
     if args.bonus_seeds:
-        pngs += reward_bonus(args.root, args.bonus_seeds, args.bonus_steps)
+        try:
+            pngs += reward_bonus(args.root, args.bonus_seeds, args.bonus_steps)
+        except ShippedFileMissing as error:  # installed from a wheel: the shipped planner is in the repository only
+            print(f"\nReward bonus skipped: {error}")
     print(f"Plots: {', '.join(str(png) for png in pngs)}. Wall time {time.perf_counter() - start:.0f} s.")
 
 

@@ -417,6 +417,7 @@ def config_hash(config: dict[str, Any], needs_hashes: list[str]) -> str:
 #: Stands for the challenge's output folder in stored configurations, so that a moved or copied folder still resumes.
 RUN_DIR = "<run>"
 #: The repository's folder (its shipped files, :class:`Shipped`), and what stands for it in stored configurations.
+#: Installed from a wheel it is the folder holding the package, with no ``zoo_runs/``: :func:`shipped_file` says so.
 REPO_DIR, REPO = Path(__file__).resolve().parents[3], "<repo>"
 
 
