@@ -34,8 +34,7 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
-from sb3_pilot.envs import register_envs
-from sb3_pilot.envs.locomotion import ant_up_z
+from sb3_pilot.envs import ant_up_z, register_envs
 
 VERSIONS = ("v0", "v1")
 #: ``ant_up_z`` below which the Ant counts as on its back, and as tilted more than 60 degrees

@@ -46,6 +46,18 @@ PILOT_ENV_SPECS: dict[str, tuple[str, dict[str, Any], int]] = {
 PILOT_ENV_IDS: tuple[str, ...] = tuple(PILOT_ENV_SPECS)
 
 
+#: Names of :mod:`sb3_pilot.envs.locomotion` exported here, imported on first use (it imports MuJoCo)
+_LOCOMOTION_NAMES = ("ANT_XML_FILES", "ant_of", "ant_up_z", "check_same_ant")
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LOCOMOTION_NAMES:
+        from sb3_pilot.envs import locomotion
+
+        return getattr(locomotion, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def register_envs() -> None:
     """Register every ``Pilot/...`` task with Gymnasium (calling it again does nothing)."""
     for env_id, (entry_point, kwargs, max_episode_steps) in PILOT_ENV_SPECS.items():
@@ -54,11 +66,15 @@ def register_envs() -> None:
 
 
 __all__ = [
+    "ANT_XML_FILES",
     "PILOT_ENV_IDS",
     "PILOT_ENV_SPECS",
     "UMAZE_MAP",
     "UMAZE_SCALING",
     "WallMaze",
+    "ant_of",
+    "ant_up_z",
+    "check_same_ant",
     "register_envs",
     "sample_umaze_start_goal",
     "umaze_cell_to_xy",
