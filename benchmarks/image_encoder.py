@@ -22,7 +22,6 @@ from typing import Any
 import torch as th
 
 from sb3_pilot.experiments.challenges import Challenge, ZooTrain, run_challenge
-from sb3_pilot.experiments.challenges.definitions import VEC_TO_IMAGE_FAST
 
 
 @dataclass(frozen=True)
@@ -47,7 +46,7 @@ def encoder_challenge(env_id: str, encoders: list[str], steps: int) -> Challenge
         env_id,
         stages,
         steps={"cpu": dict.fromkeys(encoders, steps)},
-        fast_hyperparams=VEC_TO_IMAGE_FAST,
+        recipe="vec_to_image_reacher" if env_id == "Pilot/ReacherImage-v0" else "vec_to_image",
     )
 
 

@@ -12,7 +12,7 @@ Variants (``+`` combines them, e.g. ``hidden+stack3``):
 - ``stack3``: the last 3 frames of the image entry stacked (``sb3_pilot.common.wrappers.ImageFrameStack``,
   ``n_frames=3``, after the preset's own ``env_wrapper``);
 - ``zoorl``: the RL settings under which the vector sources learn (RL-Zoo's FetchReach ones, as the challenges'
-  ``RL_ZOO_FETCH``): gamma 0.95, learning rate 1e-3, 1000 warm-up steps, one env with a gradient step per env step
+  ``hyperparams/cpu/fetch/``): gamma 0.95, learning rate 1e-3, 1000 warm-up steps, one env with a gradient step per env step
   (the preset: gamma 0.99, 3e-4, 4 envs and a gradient step per 2 env steps); minibatches and networks unchanged;
 - ``goalpred``: the encoder also trained to predict the achieved goal (``PixelGoalSACPolicy``'s
   ``goal_prediction=1.0``), which needs the package's SAC: ``--algo lean_sac`` (SB3's SAC's numbers otherwise);
@@ -77,7 +77,6 @@ import numpy as np
 import yaml
 from scipy.stats import trim_mean
 
-from sb3_pilot.experiments.challenges.definitions import RL_ZOO_FETCH
 from sb3_pilot.experiments.zoo import hyperparams_dir
 
 #: The preset every run reads (``--conf-file``, in the package's ``hyperparams/``).
@@ -136,7 +135,7 @@ def _goalnorm(changes: Changes) -> None:
 
 
 def _zoorl(changes: Changes) -> None:
-    settings = RL_ZOO_FETCH["*"]
+    settings = yaml.safe_load((hyperparams_dir() / "cpu" / "fetch" / "sac.yml").read_text())["Pilot/FetchReach-v0"]
     changes.hyperparams.update(gamma=settings["gamma"], learning_rate=settings["learning_rate"])
     changes.hyperparams.update(learning_starts=settings["learning_starts"], n_envs=1, train_freq=1, gradient_steps=1)
 

@@ -35,7 +35,6 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from sb3_pilot.envs import register_envs
-from sb3_pilot.experiments.challenges.definitions import RL_ZOO_FETCH_NORMALIZED
 from sb3_pilot.experiments.zoo import hyperparams_dir
 
 TASK = "Pilot/Reacher-v0"
@@ -59,9 +58,10 @@ def recipe(name: str) -> tuple[dict[str, Any], int, bool]:
         "replay_buffer_kwargs": {"goal_selection_strategy": "future", "n_sampled_goal": 4},
     }
     if name == "source":
-        settings = {**RL_ZOO_FETCH_NORMALIZED["*"]}
-        normalize = bool(settings.pop("normalize"))
-        return {**settings, **her}, 1, normalize
+        recipe = yaml.safe_load((hyperparams_dir() / "cpu" / "reacher" / "sac.yml").read_text())[TASK]
+        settings = {key: recipe[key] for key in ("gamma", "learning_rate", "batch_size", "learning_starts")}
+        settings["policy_kwargs"] = eval(recipe["policy_kwargs"])  # as the zoo reads it
+        return {**settings, **her}, 1, bool(recipe["normalize"])
     entry = yaml.safe_load((hyperparams_dir() / "cpu" / "sac.yml").read_text())[TASK]
     keys = ("gamma", "buffer_size", "batch_size", "learning_starts", "learning_rate")
     assert eval(entry["replay_buffer_kwargs"]) == her["replay_buffer_kwargs"] and "normalize" not in entry

@@ -7,8 +7,9 @@ package's YAML, resumable, ``summary.json`` and ``success.png`` per task), then 
         --tasks Pilot/Maze2D-v0
     python -m benchmarks.sources --table-only --root zoo_runs/sources
 
-The Fetch tasks use RL-Zoo's FetchReach settings with VecNormalize for both methods (``RL_ZOO_FETCH_NORMALIZED``, as
-the Fetch challenges), Reacher the same with one env (:data:`FAST_HYPERPARAMS`, :data:`CPU_STEPS`), the others their
+The Fetch tasks use RL-Zoo's FetchReach settings with VecNormalize for both methods (the recipe
+``hyperparams/cpu/fetch/``, as the Fetch challenges), Reacher the same with one env
+(:data:`RECIPES`, :data:`CPU_STEPS`), the others their
 ``hyperparams/<budget>`` entries; Maze2D trains on uniform starts and goals and is evaluated on the far goal
 (:data:`TRAIN_ENV_KWARGS`, :data:`EVAL_ENV_KWARGS`).
 The table (``ROOT/table.md``, every task with a summary under ROOT) gives per task and method the ``rliable`` IQM over
@@ -25,7 +26,6 @@ from pathlib import Path
 from typing import Any
 
 from sb3_pilot.experiments.challenges import Challenge, ZooTrain, run_challenge
-from sb3_pilot.experiments.challenges.definitions import FETCH_PUSH_FAST, RL_ZOO_FETCH_NORMALIZED
 from sb3_pilot.experiments.statistics import MIN_SEEDS, REPS, compare, method_statistics
 
 SOURCE_TASKS = ("Pilot/FetchReach-v0", "Pilot/FetchPush-v0", "Pilot/Reacher-v0", "Pilot/Maze2D-v0", "Pilot/PointLocomotion-v0")
@@ -38,18 +38,14 @@ SMOKE_STEPS = {"Pilot/FetchPush-v0": 500, "Pilot/PointLocomotion-v0": 2100}
 TRAIN_ENV_KWARGS: dict[str, dict[str, Any]] = {"Pilot/Maze2D-v0": {"goal_distribution": "uniform"}}
 #: Task options of the evaluation env: Maze2D is evaluated on the far goal (the paper's hard case) only.
 EVAL_ENV_KWARGS: dict[str, dict[str, Any]] = {"Pilot/Maze2D-v0": {"goal_distribution": "far"}}
-#: Settings over the ``hyperparams/<budget>`` entries at the smoke and cpu budgets, per task, both methods alike:
+#: Recipe (folder of ``hyperparams/cpu/``) read at the smoke and cpu budgets, per task, both methods alike:
 #: RL-Zoo's FetchReach settings with VecNormalize on the Fetch tasks (as the Fetch challenges) and on Reacher, there with
 #: one env (one gradient step per env step). Reacher's recipe and budget were sized from SAC + HER's probes alone,
 #: before any UDPO run (zoo_runs/sources/reacher): the preset's 4 envs (one gradient step per 4 env steps), gamma 0.99
-#: and lr 3e-4 reached 0.00-0.20 success in 50k steps. FetchPush's is :data:`FETCH_PUSH_FAST` (the High-Dim Push
+#: and lr 3e-4 reached 0.00-0.20 success in 50k steps. FetchPush's is ``fetch_push`` (the High-Dim Push
 #: challenge's too): one env, tau 0.05, 256x256 networks, a target entropy of 0 and a 50k-step random warm-up, sized
 #: from SAC + HER's runs (zoo_runs/sources/fetchpush), UDPO with the linearised entropy term and lambda 1e-4.
-FAST_HYPERPARAMS: dict[str, dict[str, dict[str, Any]]] = {
-    "Pilot/FetchReach-v0": RL_ZOO_FETCH_NORMALIZED,
-    "Pilot/FetchPush-v0": FETCH_PUSH_FAST,
-    "Pilot/Reacher-v0": {**RL_ZOO_FETCH_NORMALIZED, "*": {**RL_ZOO_FETCH_NORMALIZED["*"], "n_envs": 1}},
-}
+RECIPES: dict[str, str] = {"Pilot/FetchReach-v0": "fetch", "Pilot/FetchPush-v0": "fetch_push", "Pilot/Reacher-v0": "reacher"}
 #: Env steps at the cpu budget where not the YAML's ``n_timesteps``, per task.
 CPU_STEPS = {"Pilot/Reacher-v0": 40_000, "Pilot/FetchPush-v0": 150_000}
 #: UDPO keeps pace with HER when its IQM steps to 90% success are at most this many times SAC + HER's (issue 21).
@@ -73,7 +69,7 @@ def source_challenge(env_id: str) -> Challenge:
             "smoke": {"udpo": smoke, "her": smoke},
             **({"cpu": {"udpo": CPU_STEPS[env_id], "her": CPU_STEPS[env_id]}} if env_id in CPU_STEPS else {}),
         },
-        fast_hyperparams=FAST_HYPERPARAMS.get(env_id, {}),
+        recipe=RECIPES.get(env_id),
     )
 
 

@@ -228,22 +228,25 @@ def test_complex_morph_recipe_is_every_methods(tmp_path: Path) -> None:
     and MEGA's wrapper differ; the class in ``policy_kwargs`` reaches the zoo as an expression it evaluates."""
     from sb3_pilot.common.torch_layers import GoalRelativeExtractor
     from sb3_pilot.experiments.challenges.definitions import BUDGETS
-    from sb3_pilot.experiments.challenges.stages import Import, StageContext
+    from sb3_pilot.experiments.challenges.stages import Import, StageContext, zoo_hyperparams
 
     assert eval(repr(Import("sb3_pilot.common.torch_layers", "GoalRelativeExtractor"))) is GoalRelativeExtractor
     challenge = CHALLENGES["complex-morph"]
-    ctx = StageContext(tmp_path, 0, BUDGETS["cpu"], challenge.steps["cpu"], challenge.fast_hyperparams)
+    ctx = StageContext(tmp_path, 0, BUDGETS["cpu"], challenge.steps["cpu"], challenge.recipe)
     ctx.outputs = {stage.name: stage.output(tmp_path / stage.name) for stage in challenge.stages}
 
-    def params(name: str) -> dict[str, str]:
+    def params(name: str) -> dict[str, Any]:
         stage = next(stage for stage in challenge.stages if stage.name == name)
-        args = stage.zoo_args(ctx, tmp_path / name)
+        config = stage.config(ctx, tmp_path / name)
+        args = config["zoo"]
         assert args[args.index("--algo") + 1] == "lean_sac" and args[args.index("-n") + 1] == "300000"
-        values = dict(arg.split(":", 1) for arg in args[args.index("-params") + 1 :])
-        return {key: value for key, value in values.items() if key not in ("env_wrapper", "callback")}
+        values = zoo_hyperparams(config)
+        bonus_and_mega = ("env_wrapper", "replay_buffer_class", "callback", "vec_env_wrapper")
+        return {key: value for key, value in values.items() if key not in bonus_and_mega}
 
     her = params("her")
-    assert "GoalRelativeExtractor" in her["policy_kwargs"] and her["n_envs"] == "2" and her["gamma"] == "0.98"
+    assert her["policy_kwargs"]["features_extractor_class"] is GoalRelativeExtractor
+    assert her["n_envs"] == 2 and her["gamma"] == 0.98
     assert all(params(name) == her for name in ("pilot", "pilot_disp", "mega"))
 
 
@@ -255,7 +258,7 @@ def test_only_the_push_source_learns_its_temperature_from_a_tenth(name: str, tmp
     from sb3_pilot.experiments.challenges.stages import StageContext
 
     challenge = CHALLENGES[name]
-    ctx = StageContext(tmp_path, 0, BUDGETS["cpu"], challenge.steps["cpu"], challenge.fast_hyperparams)
+    ctx = StageContext(tmp_path, 0, BUDGETS["cpu"], challenge.steps["cpu"], challenge.recipe)
     ctx.outputs = {stage.name: stage.output(tmp_path / stage.name) for stage in challenge.stages}
     ent_coef = {
         stage.name: [arg for arg in stage.zoo_args(ctx, tmp_path / stage.name) if arg.startswith("ent_coef:")]
@@ -273,7 +276,7 @@ def test_a_changed_preset_makes_a_stage_stale(tmp_path: Path, monkeypatch: pytes
 
     challenge = CHALLENGES["high-dim-action"]
     source = next(stage for stage in challenge.stages if stage.name == "source")
-    ctx = stages.StageContext(tmp_path, 0, BUDGETS["cpu"], challenge.steps["cpu"], challenge.fast_hyperparams)
+    ctx = stages.StageContext(tmp_path, 0, BUDGETS["cpu"], challenge.steps["cpu"], challenge.recipe)
 
     def digest() -> str:
         return stages.config_hash(source.config(ctx, tmp_path / "source"), [])
@@ -283,7 +286,7 @@ def test_a_changed_preset_makes_a_stage_stale(tmp_path: Path, monkeypatch: pytes
     shutil.copytree(hyperparams_dir(), conf)
     monkeypatch.setattr(stages, "hyperparams_dir", lambda: conf)
     assert digest() == before  # the same presets elsewhere
-    path = conf / BUDGETS["cpu"].conf_dir / source.conf_file
+    path = conf / source.conf_file_at(ctx)
     presets = yaml.safe_load(path.read_text())
     presets[source.env_id]["planner_coef"] *= 2
     path.write_text(yaml.safe_dump(presets))

@@ -62,7 +62,7 @@ def zoo_run(seed_dir: Path, steps: list[int], final_steps: int, normalize: bool 
 
 def context(seed_dir: Path, final: Path) -> StageContext:
     """The smoke budget's context: 2 episodes of 20 steps per checkpoint."""
-    ctx = StageContext(seed_dir, 0, BUDGETS["smoke"], steps={"chosen": 20}, fast_hyperparams={})
+    ctx = StageContext(seed_dir, 0, BUDGETS["smoke"], steps={"chosen": 20})
     ctx.outputs = {"controller": final}
     return ctx
 
@@ -152,7 +152,7 @@ def test_a_normalised_run_needs_each_checkpoints_statistics(tmp_path: Path) -> N
 
 def test_controller_keeps_checkpoints_only_when_asked(tmp_path: Path) -> None:
     """``checkpoints=N`` adds the zoo's --save-freq (steps // N); without it the command, and so the hash, is as before."""
-    ctx = StageContext(tmp_path, 0, BUDGETS["smoke"], steps={"a": 700}, fast_hyperparams={})
+    ctx = StageContext(tmp_path, 0, BUDGETS["smoke"], steps={"a": 700})
     kept = ZooTrain("a", "sac", ENV_ID, "sac.yml", checkpoints=7).zoo_args(ctx, tmp_path)
     assert kept[kept.index("--save-freq") + 1] == "100"
     assert "--save-freq" not in ZooTrain("a", "sac", ENV_ID, "sac.yml").zoo_args(ctx, tmp_path)

@@ -85,8 +85,11 @@ def test_image_entries_are_pixel_only(conf: str) -> None:
             assert entry["env_wrapper"][0]["sb3_pilot.PilotBonusWrapper"]["similarity"] == similarity, env_id
     assert IMAGE_ENCODER in ("nature", "paper")
     for name in ("vec-to-image", "vec-to-image-reacher"):
-        kwargs = CHALLENGES[name].fast_hyperparams["sac"]["policy_kwargs"]["features_extractor_kwargs"]
-        assert kwargs == {"encoder": IMAGE_ENCODER}
+        challenge = CHALLENGES[name]
+        for conf in ("sac.yml", "sac_pilot.yml"):
+            recipe = yaml.safe_load((hyperparams_dir() / "cpu" / challenge.recipe / conf).read_text())
+            kwargs = eval(recipe[challenge.target_env]["policy_kwargs"])["features_extractor_kwargs"]
+            assert kwargs == {"encoder": IMAGE_ENCODER}, (name, conf)
 
 
 def test_demo_budget_is_named() -> None:
@@ -102,7 +105,7 @@ def test_maze_car_shipped_planner_is_shared() -> None:
 
     shipped, full = REUSE_SHIPPED["maze-car"], CHALLENGES["maze-car"]
     assert shipped.stages[0].name == "distill" and shipped.stages[1:] == full.stages[2:]
-    assert shipped.fast_hyperparams == full.fast_hyperparams and shipped.target_env == full.target_env
+    assert shipped.recipe == full.recipe and shipped.target_env == full.target_env
     assert shipped.steps["cpu"] == {stage.name: full.steps["cpu"][stage.name] for stage in shipped.stages[1:]}
     assert GoalPlanner.load(shipped.stages[0].path).source_task == "Pilot/Maze2D-v0"
 

@@ -176,7 +176,7 @@ def test_a_recorded_source_outlives_its_models(tmp_path: Path) -> None:
     """On a fresh clone (models gone) the source's record in summary.json is kept, as the methods' runs are."""
     out_dir, seeds = tmp_path / CHALLENGE.name, [0, 1]
     budget = BUDGETS["cpu"]
-    ctx = {"budget": budget, "steps": CHALLENGE.steps["cpu"], "fast_hyperparams": CHALLENGE.fast_hyperparams}
+    ctx = {"budget": budget, "steps": CHALLENGE.steps["cpu"], "recipe": CHALLENGE.recipe}
     tasks, _ = plan(CHALLENGE, seeds, out_dir, ctx)
     markers = make_run(out_dir, target_curves(seeds))
     for task in tasks:  # the hashes plan computes, as a finished run's markers hold them
@@ -209,7 +209,7 @@ def test_a_finished_method_of_an_unfinished_seed_outlives_its_models(tmp_path: P
     a fresh clone trains seed 1's source and transfer only."""
     out_dir, seeds = tmp_path / CHALLENGE.name, [0, 1]
     budget = BUDGETS["cpu"]
-    ctx = {"budget": budget, "steps": CHALLENGE.steps["cpu"], "fast_hyperparams": CHALLENGE.fast_hyperparams}
+    ctx = {"budget": budget, "steps": CHALLENGE.steps["cpu"], "recipe": CHALLENGE.recipe}
     tasks, _ = plan(CHALLENGE, seeds, out_dir, ctx)
     markers = make_run(out_dir, target_curves(seeds))
     for task in tasks:

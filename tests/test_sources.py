@@ -12,8 +12,8 @@ from benchmarks.sources import (
     verdict,
 )
 from sb3_pilot.experiments.challenges import CHALLENGES, stage_graph
-from sb3_pilot.experiments.challenges.definitions import BUDGETS, RL_ZOO_FETCH_NORMALIZED
-from sb3_pilot.experiments.challenges.stages import StageContext
+from sb3_pilot.experiments.challenges.definitions import BUDGETS
+from sb3_pilot.experiments.challenges.stages import StageContext, zoo_hyperparams
 
 
 def test_every_source_task_has_two_independent_stages() -> None:
@@ -21,34 +21,39 @@ def test_every_source_task_has_two_independent_stages() -> None:
         challenge = source_challenge(env_id)
         assert stage_graph(challenge, [0, 1]) == {f"seed_{s}/{n}": () for s in (0, 1) for n in ("udpo", "her")}
         assert [stage.method for stage in challenge.stages] == [UDPO_HER, SAC_HER]
-        assert bool(challenge.fast_hyperparams) == ("Fetch" in env_id or env_id == "Pilot/Reacher-v0")
+        assert bool(challenge.recipe) == ("Fetch" in env_id or env_id == "Pilot/Reacher-v0")
 
 
-def test_reacher_recipe_is_the_fetch_one_with_one_env() -> None:
+def test_reacher_recipe_is_the_fetch_one_with_one_env(tmp_path: Path) -> None:
     """Reacher: RL-Zoo's FetchReach settings with VecNormalize and one env, both methods, 40k steps at the cpu budget."""
-    challenge = source_challenge("Pilot/Reacher-v0")
-    fast = challenge.fast_hyperparams
-    assert fast["*"] == {**RL_ZOO_FETCH_NORMALIZED["*"], "n_envs": 1} and fast["udpo"] == RL_ZOO_FETCH_NORMALIZED["udpo"]
+    challenge, fetch = source_challenge("Pilot/Reacher-v0"), source_challenge("Pilot/FetchReach-v0")
     assert challenge.steps["cpu"] == {"udpo": 40_000, "her": 40_000}
+    recipe = StageContext(tmp_path, 0, BUDGETS["cpu"], challenge.steps["cpu"], challenge.recipe)
+    fetch_recipe = StageContext(tmp_path, 0, BUDGETS["cpu"], fetch.steps.get("cpu", {}), fetch.recipe)
+    keys = ("gamma", "learning_rate", "batch_size", "learning_starts", "policy_kwargs", "normalize")
+    for stage, fetch_stage in zip(challenge.stages, fetch.stages, strict=True):
+        reacher = zoo_hyperparams(stage.config(recipe, tmp_path / stage.name))
+        assert reacher["n_envs"] == 1 and reacher["normalize"] is True
+        fetch_values = zoo_hyperparams(fetch_stage.config(fetch_recipe, tmp_path / stage.name))
+        assert {key: reacher[key] for key in keys} == {key: fetch_values[key] for key in keys}
 
 
 def test_fetch_push_recipe_reaches_the_zoo(tmp_path: Path) -> None:
     """FetchPush at the cpu budget: one env, a 50k-step warm-up and target entropy 0 for both methods, UDPO with the
     linearised entropy term and lambda 1e-4, 150k steps; the same recipe as the High-Dim Push challenge."""
     challenge = source_challenge("Pilot/FetchPush-v0")
-    assert challenge.fast_hyperparams is CHALLENGES["high-dim-action-push"].fast_hyperparams
+    assert challenge.recipe == CHALLENGES["high-dim-action-push"].recipe == "fetch_push"
     assert challenge.steps["cpu"] == {"udpo": 150_000, "her": 150_000}
-    ctx = StageContext(tmp_path, 0, BUDGETS["cpu"], challenge.steps["cpu"], challenge.fast_hyperparams, {})
-    udpo, her = (stage.zoo_args(ctx, tmp_path / stage.name) for stage in challenge.stages)
-    for args in (udpo, her):
-        params = args[args.index("-params") + 1 :]
-        assert {"n_envs:1", "learning_starts:50000", "target_entropy:0.0", "tau:0.05"} <= set(params)
-    assert {"planner_coef:0.0001", "entropy_term:'linearised'"} <= set(udpo) and "planner_coef:0.0001" not in her
+    ctx = StageContext(tmp_path, 0, BUDGETS["cpu"], challenge.steps["cpu"], challenge.recipe, {})
+    udpo, her = (zoo_hyperparams(stage.config(ctx, tmp_path / stage.name)) for stage in challenge.stages)
+    for values in (udpo, her):
+        assert (values["n_envs"], values["learning_starts"], values["target_entropy"], values["tau"]) == (1, 50000, 0.0, 0.05)
+    assert (udpo["planner_coef"], udpo["entropy_term"]) == (0.0001, "linearised") and "planner_coef" not in her
 
 
 def test_maze2d_trains_on_uniform_goals_and_is_evaluated_on_the_far_goal(tmp_path: Path) -> None:
     challenge = source_challenge("Pilot/Maze2D-v0")
-    ctx = StageContext(tmp_path, 0, BUDGETS["cpu"], {}, challenge.fast_hyperparams, {})
+    ctx = StageContext(tmp_path, 0, BUDGETS["cpu"], {}, challenge.recipe, {})
     for stage in challenge.stages:
         args = stage.zoo_args(ctx, tmp_path / stage.name)
         assert args[args.index("--env-kwargs") + 1] == "goal_distribution:'uniform'"

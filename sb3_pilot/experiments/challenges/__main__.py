@@ -143,7 +143,7 @@ def main(argv: list[str] | None = None) -> None:
                 keep_going=args.keep_going,
                 dry_run=args.dry_run,
             )
-        except (StageFailed, ShippedFileMissing) as error:
+        except (StageFailed, ShippedFileMissing, ValueError) as error:  # ValueError: refused before any work
             sys.exit(f"{challenge.name}: {error}")
         if args.plot and not args.dry_run:
             from sb3_pilot.experiments.plots import plot_challenge

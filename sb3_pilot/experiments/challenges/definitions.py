@@ -23,12 +23,21 @@ agents ran at 15-26 env steps/s) and High-Dim-Action on Push 69 min; Complex-Mor
 300k-step Ant stages and Zero-shot Ant-Maze's 350k-step controller and baseline 20-45 min each); ``demo`` is ``make
 demo``'s (High-Dim-Action only, see :mod:`sb3_pilot.experiments.demo`); ``smoke`` only checks that the pipeline
 runs.
+
+Hyperparameters: every zoo stage reads one RL-Zoo YAML entry, its task's in ``hyperparams/<conf_dir><conf_file>``
+(``conf_dir``: ``cpu/`` at the smoke, cpu and demo budgets, none at ``paper``) or, at the budgets that read recipes
+(all but ``paper``), in the challenge's recipe folder ``hyperparams/cpu/<recipe>/<conf_file>`` where it has that file:
+the settings measured to learn quickly on this machine, whose notes are the files' headers. One merge rule: the YAML
+entry, then the budget's ``hyperparams`` (``smoke``'s small networks), then the stage's ``params`` (paths of earlier
+stages' outputs), ``policy_kwargs`` merged key by key (:meth:`~sb3_pilot.experiments.challenges.stages.ZooTrain.zoo_args`).
+The same entry trains outside the challenges, e.g. ``python -m sb3_pilot.experiments.zoo train --algo udpo --env
+Pilot/FetchReach-v0 --conf-file cpu/fetch/udpo.yml``.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -39,7 +48,6 @@ from sb3_pilot.experiments.challenges.stages import (
     REPO_DIR,
     Budget,
     Distill,
-    Import,
     Params,
     Shipped,
     Stage,
@@ -68,91 +76,14 @@ BUDGETS: dict[str, Budget] = {
         n_evals=20,
         eval_episodes=10,
         distill={"n_samples": 200_000, "gradient_steps": 20_000},
-        fast=False,
+        recipes=False,
     ),
 }
 
-#: RL-Zoo's FetchReach settings (its ``her.yml``) but its VecNormalize, with which SAC + HER and UDPO were measured
-#: here to reach 100% success on Pilot/FetchReach-v0 in about 6k steps, where the paper's (256-unit networks, gamma
-#: 0.99, lr 3e-4) take far longer on 2 cores. Applied to every method of the Fetch challenges at the smoke and cpu
-#: budgets, never at ``paper``. Without RL-Zoo's observation normalisation, UDPO on FetchReach was measured at 0-20%
-#: success after 5k steps (40% with it): see :data:`RL_ZOO_FETCH_NORMALIZED`.
-RL_ZOO_FETCH: dict[str, dict[str, Any]] = {
-    "*": {
-        "gamma": 0.95,
-        "learning_rate": 1e-3,
-        "batch_size": 256,
-        "learning_starts": 1000,
-        "policy_kwargs": {"net_arch": [64, 64]},
-    },
-    "udpo": {"planner_learning_rate": 1e-3, "inverse_dynamics_learning_rate": 1e-3},
-}
-#: :data:`RL_ZOO_FETCH` with RL-Zoo's ``normalize: true`` (VecNormalize of observations and rewards), for every
-#: stage of the High-Dim-Action challenge (source, transfer target and SAC + HER baseline alike): the zoo's
-#: state-planner transfer hook carries the source's statistics into the target, frozen with the planner.
-RL_ZOO_FETCH_NORMALIZED: dict[str, dict[str, Any]] = {**RL_ZOO_FETCH, "*": {**RL_ZOO_FETCH["*"], "normalize": True}}
-#: Fetch-Push's recipe at the smoke and cpu budgets, every method alike (issue 21, zoo_runs/sources/fetchpush):
-#: :data:`RL_ZOO_FETCH_NORMALIZED` with one env (one gradient step per env step), RL-Zoo's FetchPush tau 0.05, SB3's
-#: 256x256 networks (RL-Zoo's FetchPush uses 512x512x512), a target entropy of 0 instead of -dim(action) (with -4 SAC
-#: + HER's temperature collapsed and it stayed at chance) and a 50k-step random warm-up (random actions move the object
-#: in 18% of episodes, more than a young policy does). SAC + HER reached 90% at 100-150k steps with it, 200k with 1000
-#: warm-up steps (4 of 4 seeds). UDPO takes the linearised entropy term and lambda 1e-4: at lambda 1e-3 its
-#: deterministic action shrank to a third of SAC + HER's and it stayed at chance to 175k steps; at 1e-4 it reached 90%
-#: at 125k-150k on 2 of 4 seeds, and one seed diverged from SB3's initial temperature of 1 (1.30x SAC + HER's steps);
-#: the challenge's source therefore learns its temperature from 0.1 (:func:`_low_initial_temperature`).
-FETCH_PUSH_FAST: dict[str, dict[str, Any]] = {
-    **RL_ZOO_FETCH_NORMALIZED,
-    "*": {
-        **RL_ZOO_FETCH_NORMALIZED["*"],
-        "n_envs": 1,
-        "tau": 0.05,
-        "target_entropy": 0.0,
-        "learning_starts": 50_000,
-        "policy_kwargs": {"net_arch": [256, 256]},
-    },
-    "udpo": {**RL_ZOO_FETCH_NORMALIZED["udpo"], "planner_coef": 1e-4, "entropy_term": "linearised"},
-}
 #: Encoder of the pixel-only agents at the smoke and cpu budgets, both methods alike (:class:`PixelGoalExtractor`'s
-#: ``encoder``): chosen by success per wall-clock minute at the cpu budget (zoo_runs/image-encoder/README.md).
+#: ``encoder``, in ``hyperparams/cpu/vec_to_image*/sac*.yml``): chosen by success per wall-clock minute at the cpu budget
+#: (zoo_runs/image-encoder/README.md).
 IMAGE_ENCODER = "nature"
-#: Vec-to-Image's settings: :data:`RL_ZOO_FETCH` with ``normalize: true`` for the UDPO source only (it learns
-#: FetchReach as in High-Dim-Action, and distillation maps the teacher's normalised plans back to raw goals, which is
-#: what the bonus reads), and minibatches of 64 for the image agents (PILoT and baseline alike): with 256, SAC's CNN
-#: updates ran at about 4 steps/s on one core here, 20k steps per method would take hours. The image agents' policy
-#: is the YAML's ``PixelGoalSACPolicy`` (image and desired goal only, one encoder trained by the critic); the
-#: encoder is named here so that every command line records it.
-VEC_TO_IMAGE_FAST: dict[str, dict[str, Any]] = {
-    **RL_ZOO_FETCH,
-    "udpo": {**RL_ZOO_FETCH["udpo"], "normalize": True},
-    "sac": {"batch_size": 64, "policy_kwargs": {"features_extractor_kwargs": {"encoder": IMAGE_ENCODER}}},
-}
-
-#: Vec-to-Image on Reacher: :data:`VEC_TO_IMAGE_FAST` with the source recipe under which SAC + HER and UDPO learn
-#: Reacher (zoo_runs/sources/reacher: one env, one gradient step per env step; 40k steps at the cpu budget).
-VEC_TO_IMAGE_REACHER_FAST: dict[str, dict[str, Any]] = {
-    **VEC_TO_IMAGE_FAST,
-    "udpo": {**VEC_TO_IMAGE_FAST["udpo"], "n_envs": 1},
-}
-#: Maze-Car's target agents at the smoke and cpu budgets, every method alike: 64x64 networks (RL-Zoo's FetchReach
-#: size) instead of SB3's 256x256, so that 10 seeds x 3 methods fit a session on a shared 2-core machine (a 256x256
-#: SAC ran at 27-90 env steps/s on one core there); the source UDPO keeps its YAML's.
-MAZE_CAR_FAST: dict[str, dict[str, Any]] = {"sac": {"policy_kwargs": {"net_arch": [64, 64]}}}
-#: Complex-Morph's Ant agents at the smoke and cpu budgets, every method alike (the issue on the bonus's recipe, under
-#: which SAC + HER was measured to learn Ant-Locomotion: 0.45 of its goals within 0.1 at 250k steps on one seed, 0.20
-#: at 150k on another, where the YAML's absolute inputs, lr 3e-4, gamma 0.99 and 4 envs reached 0.05 at 300k):
-#: goal-relative inputs in the torso's heading frame (:class:`GoalRelativeExtractor`), 2 envs with one gradient step
-#: per 2 env steps, lr 1e-3, gamma 0.98, 256x256 networks; the lean SAC update (``lean_sac``) for all of them.
-COMPLEX_MORPH_FAST: dict[str, dict[str, Any]] = {
-    "lean_sac": {
-        "n_envs": 2,
-        "learning_rate": 1e-3,
-        "gamma": 0.98,
-        "policy_kwargs": {
-            "net_arch": [256, 256],
-            "features_extractor_class": Import("sb3_pilot.common.torch_layers", "GoalRelativeExtractor"),
-        },
-    }
-}
 
 
 @dataclass(frozen=True)
@@ -165,7 +96,9 @@ class Challenge:
     :param target_env: the task the methods are compared on
     :param stages: the stages (a stage may read the outputs of the stages before it)
     :param steps: env steps of each training stage per budget name (a missing budget or stage: the YAML's)
-    :param fast_hyperparams: hyperparameters per zoo algorithm (``"*"``: all) applied at budgets with ``fast``
+    :param recipe: the challenge's recipe, a folder of RL-Zoo YAML files under the budget's ``conf_dir``
+        (``hyperparams/cpu/<recipe>/``) that its zoo stages read at budgets with ``recipes`` where it has their file
+        (:meth:`~sb3_pilot.experiments.challenges.stages.ZooTrain.conf_file_at`); None: the budget's files
     """
 
     name: str
@@ -173,7 +106,7 @@ class Challenge:
     target_env: str
     stages: tuple[Stage, ...]
     steps: dict[str, dict[str, int]]
-    fast_hyperparams: dict[str, dict[str, Any]] = field(default_factory=dict)
+    recipe: str | None = None
 
     def __post_init__(self) -> None:
         methods = {stage.name for stage in self.stages if stage.method is not None}
@@ -239,9 +172,9 @@ PILOT_PAPER, PILOT_DISPLACEMENT = "HER+PILoT (bonus, paper: goal_cosine)", "HER+
 
 def _low_initial_temperature(outputs: dict[str, Path]) -> dict[str, Any]:
     """
-    ``-params`` of Fetch-Push's UDPO source: its temperature learnt from 0.1, not SB3's 1. Under
-    :data:`FETCH_PUSH_FAST` it ran away after the warm-up from 1 on 2 of 7 seeds (the second the challenge's own seed 2,
-    whose run then failed), from 0.1 on none of 6 (``zoo_runs/sources/fetchpush``).
+    ``-params`` of Fetch-Push's UDPO source: its temperature learnt from 0.1, not SB3's 1. Under its recipe
+    (``hyperparams/cpu/fetch_push/``) it ran away after the warm-up from 1 on 2 of 7 seeds (the second the challenge's
+    own seed 2, whose run then failed), from 0.1 on none of 6 (``zoo_runs/sources/fetchpush``).
     """
     return {"ent_coef": "auto_0.1"}
 
@@ -392,19 +325,19 @@ CHALLENGES: dict[str, Challenge] = {
             "Pilot/FetchReachHighDim-v0",
             HIGH_DIM_ACTION_STAGES,
             steps=HIGH_DIM_ACTION_STEPS,
-            fast_hyperparams=RL_ZOO_FETCH_NORMALIZED,
+            recipe="fetch",
         ),
         Challenge(
             "high-dim-action-push",
             "UDPO on Fetch-Push -> its state planner, frozen, in a UDPO on Fetch-Push-High-Dim, vs SAC+HER",
             "Pilot/FetchPushHighDim-v0",
             _high_dim_stages("Pilot/FetchPush-v0", "Pilot/FetchPushHighDim-v0", source_params=_low_initial_temperature),
-            # cpu: the steps in which SAC + HER and UDPO learnt Fetch-Push with FETCH_PUSH_FAST
+            # cpu: the steps in which SAC + HER and UDPO learnt Fetch-Push with its recipe (hyperparams/cpu/fetch_push/)
             steps={
                 "smoke": {"source": 1200, "pilot": 1200, "her": 1200},
                 "cpu": {"source": 150_000, "pilot": 150_000, "her": 150_000},
             },
-            fast_hyperparams=FETCH_PUSH_FAST,
+            recipe="fetch_push",
         ),
         Challenge(
             "vec-to-image",
@@ -416,7 +349,7 @@ CHALLENGES: dict[str, Challenge] = {
                 "smoke": {"source": 300, "pilot": 200, "pilot_disp": 200, "her": 200},
                 "cpu": {"source": 8000, "pilot": 8000, "pilot_disp": 8000, "her": 8000},
             },
-            fast_hyperparams=VEC_TO_IMAGE_FAST,
+            recipe="vec_to_image",
         ),
         Challenge(
             "vec-to-image-reacher",
@@ -428,7 +361,7 @@ CHALLENGES: dict[str, Challenge] = {
                 "smoke": {"source": 800, "pilot": 400, "pilot_disp": 400, "her": 400},
                 "cpu": {"source": 40_000, "pilot": 8000, "pilot_disp": 8000, "her": 8000},
             },
-            fast_hyperparams=VEC_TO_IMAGE_REACHER_FAST,
+            recipe="vec_to_image_reacher",
         ),
         Challenge(
             "complex-morph",
@@ -440,13 +373,13 @@ CHALLENGES: dict[str, Challenge] = {
             ),
             steps={
                 "smoke": {"source": 2100, "pilot": 500, "pilot_disp": 500, "her": 500, "mega": 500},
-                # the target's budget from SAC + HER's own curve under COMPLEX_MORPH_FAST's recipe, fixed before any
-                # HER + PILoT run with it: 0.20 of the goals at 150k (one seed), 0.45 at 250k (another), so ~50% is
+                # the target's budget from SAC + HER's own curve under its recipe (hyperparams/cpu/complex_morph/), fixed
+                # before any HER + PILoT run with it: 0.20 of the goals at 150k (one seed), 0.45 at 250k (another), so ~50% is
                 # passed near 300k. The source's: UDPO reaches 90% on Point-Locomotion at ~53k steps (IQM of 3 seeds,
                 # zoo_runs/sources/lambda), so 80k gives the planner a source that has learned
                 "cpu": {"source": 80_000, "pilot": 300_000, "pilot_disp": 300_000, "her": 300_000, "mega": 300_000},
             },
-            fast_hyperparams=COMPLEX_MORPH_FAST,
+            recipe="complex_morph",
         ),
         Challenge(
             "maze-car",
@@ -454,7 +387,7 @@ CHALLENGES: dict[str, Challenge] = {
             "Pilot/Maze2DCar-v0",
             MAZE_CAR_STAGES,
             steps=MAZE_CAR_STEPS,
-            fast_hyperparams=MAZE_CAR_FAST,
+            recipe="maze_car",
         ),
         Challenge(
             "wall-maze-car",
@@ -642,10 +575,11 @@ SHIPPED_DIR = REPO_DIR / "zoo_runs" / "zero-shot-ant-maze" / "controller"
 MAZE_CAR_PLANNER = SHIPPED_DIR / "maze2d_planner.pt"
 #: The trained sources shipped in the repository, laid out as the zoo saves a run (``zoo_runs/sources/shipped/README.md``
 #: says how each was made), each with its ``VecNormalize``: UDPO on Fetch-Reach (the sources benchmark's recipe, seed 0)
-#: and on Fetch-Push (:data:`FETCH_PUSH_FAST`, seed 0).
+#: and on Fetch-Push (``hyperparams/cpu/fetch_push/``, seed 0).
 SOURCES_DIR = REPO_DIR / "zoo_runs" / "sources" / "shipped"
 FETCH_REACH_SOURCE = SOURCES_DIR / "fetchreach_seed0" / "udpo" / "Pilot-FetchReach-v0_1" / "Pilot-FetchReach-v0.zip"
-#: UDPO on Fetch-Push with :data:`FETCH_PUSH_FAST` (lambda 1e-4, 50k warm-up steps), seed 0, its 150k-step checkpoint.
+#: UDPO on Fetch-Push with its recipe ``hyperparams/cpu/fetch_push/`` (lambda 1e-4, 50k warm-up steps), seed 0, its
+#: 150k-step checkpoint.
 FETCH_PUSH_SOURCE = SOURCES_DIR / "fetchpush_seed0" / "udpo" / "Pilot-FetchPush-v0_1" / "Pilot-FetchPush-v0.zip"
 #: The PointMaze goal planner and the open-arena Ant controller shipped for ``pointmaze-to-antmaze`` (one training seed of
 #: that challenge: its ``distill`` stage's planner and its ``chosen`` stage's checkpoint; ``shipped/README.md`` there).
@@ -754,7 +688,7 @@ REUSE_SHIPPED: dict[str, Challenge] = {
             budget: {name: steps[name] for name in ("pilot", "pilot_disp", "her", "mega")}
             for budget, steps in MAZE_CAR_STEPS.items()
         },
-        fast_hyperparams=MAZE_CAR_FAST,
+        recipe="maze_car",
     ),
 }
 

@@ -23,6 +23,7 @@ from sb3_pilot.experiments.challenges.backends import BACKENDS, StageTask, run_l
 from sb3_pilot.experiments.challenges.controller import ControllerEvaluation
 from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, HER, Challenge
 from sb3_pilot.experiments.challenges.display import RunDisplay, stage_name
+from sb3_pilot.experiments.challenges.records import config_differences
 from sb3_pilot.experiments.challenges.stages import (
     PROGRESS_CSV,
     STAGE_COMMAND,
@@ -36,6 +37,7 @@ from sb3_pilot.experiments.challenges.stages import (
     portable,
 )
 from sb3_pilot.experiments.statistics import MIN_SEEDS, aggregate_name, format_seeds, summary_statistics
+from sb3_pilot.experiments.zoo import hyperparams_dir
 
 #: Success rates whose first crossing the summary reports (``steps_to_50``, ``steps_to_90``).
 THRESHOLDS = (0.5, 0.9)
@@ -344,6 +346,61 @@ def keep_earlier(summary: dict[str, Any], record: dict[str, Any], keys: Sequence
     return {**summary, "stages": {**summary["stages"], **stages}, **({"partial_runs": partial} if partial else {})}
 
 
+def check_recipe(challenge: Challenge, budget: Budget) -> str | None:
+    """
+    The recipe the challenge's zoo stages read at this budget (:attr:`Challenge.recipe`), checked before any work.
+
+    :param challenge: the challenge
+    :param budget: the budget
+    :return: the recipe folder's name, or None where the budget reads no recipe or the challenge names none
+    :raise ValueError: for a recipe that is no folder of the budget's ``hyperparams/`` (naming those there)
+    """
+    if not budget.recipes or challenge.recipe is None:
+        return None
+    folder = hyperparams_dir() / budget.conf_dir
+    if not (folder / challenge.recipe).is_dir():
+        names = sorted(path.name for path in folder.iterdir() if path.is_dir())
+        raise ValueError(
+            f"{challenge.name}: no recipe {challenge.recipe!r} in hyperparams/{budget.conf_dir} (its recipes: "
+            f"{', '.join(names)})."
+        )
+    return challenge.recipe
+
+
+def context_kwargs(challenge: Challenge, budget: Budget, steps: dict[str, int] | None = None) -> dict[str, Any]:
+    """
+    The budget's arguments of :class:`StageContext` for a challenge: the budget, the stages' env steps (the
+    challenge's at this budget, ``steps`` over them) and the recipe it reads (:func:`check_recipe`).
+    """
+    stage_steps = {**challenge.steps.get(budget.name, {}), **(steps or {})}
+    return {"budget": budget, "steps": stage_steps, "recipe": check_recipe(challenge, budget)}
+
+
+def stage_tasks(challenge: Challenge, seeds: Sequence[int], out_dir: Path, ctx_kwargs: dict[str, Any]) -> dict[str, StageTask]:
+    """
+    Every stage of every seed with its configuration as stored (:func:`portable`) and its hash (from those of the
+    stages it reads from), by ``seed_<k>/<stage>``, a stage after those it reads from.
+
+    :param challenge: the challenge
+    :param seeds: the seeds
+    :param out_dir: ``<root>/<challenge>``
+    :param ctx_kwargs: the other arguments of :class:`StageContext`
+    """
+    graph = stage_graph(challenge, seeds)
+    tasks: dict[str, StageTask] = {}
+    for seed in seeds:
+        seed_dir = out_dir / "models" / f"seed_{seed}"
+        ctx = StageContext(seed_dir, seed, **ctx_kwargs)
+        ctx.outputs = {stage.name: stage.output(seed_dir / stage.name) for stage in challenge.stages}
+        hashes: dict[str, str] = {}
+        for stage in challenge.stages:
+            key, stage_dir = f"seed_{seed}/{stage.name}", seed_dir / stage.name
+            config = portable(stage.config(ctx, stage_dir), out_dir)
+            hashes[stage.name] = digest = config_hash(config, [hashes[name] for name in stage.needs])
+            tasks[key] = StageTask(key, stage, ctx, stage_dir, config, digest, graph[key])
+    return tasks
+
+
 def plan(
     challenge: Challenge, seeds: Sequence[int], out_dir: Path, ctx_kwargs: dict[str, Any]
 ) -> tuple[list[StageTask], dict[str, dict[str, Any]]]:
@@ -364,25 +421,18 @@ def plan(
     runs = recorded_runs(record)
     todo: dict[str, StageTask] = {}
     finished: dict[str, dict[str, Any]] = {}
-    for seed in seeds:
-        seed_dir = out_dir / "models" / f"seed_{seed}"
-        ctx = StageContext(seed_dir, seed, **ctx_kwargs)
-        ctx.outputs = {stage.name: stage.output(seed_dir / stage.name) for stage in challenge.stages}
-        hashes: dict[str, str] = {}
-        for stage in challenge.stages:
-            key, stage_dir = f"seed_{seed}/{stage.name}", seed_dir / stage.name
-            config = portable(stage.config(ctx, stage_dir), out_dir)
-            hashes[stage.name] = digest = config_hash(config, [hashes[name] for name in stage.needs])
-            marker_path = stage_dir / STAGE_MARKER
-            recorded = record["stages"].get(key, {})
-            if marker_path.exists():
-                marker = json.loads(marker_path.read_text())
-                if marker["config_hash"] == digest:
-                    finished[key] = {**marker, "skipped": True}
-                    continue
-            elif not stage_dir.exists() and recorded.get("config_hash") == digest and (stage.method is None or key in runs):
-                finished[key] = {**recorded, "skipped": True, "from_summary": True, "recorded": runs.get(key)}
-            todo[key] = StageTask(key, stage, ctx, stage_dir, config, digest, graph[key])
+    for key, task in stage_tasks(challenge, seeds, out_dir, ctx_kwargs).items():
+        stage, stage_dir, digest = task.stage, task.stage_dir, task.digest
+        marker_path = stage_dir / STAGE_MARKER
+        recorded = record["stages"].get(key, {})
+        if marker_path.exists():
+            marker = json.loads(marker_path.read_text())
+            if marker["config_hash"] == digest:
+                finished[key] = {**marker, "skipped": True}
+                continue
+        elif not stage_dir.exists() and recorded.get("config_hash") == digest and (stage.method is None or key in runs):
+            finished[key] = {**recorded, "skipped": True, "from_summary": True, "recorded": runs.get(key)}
+        todo[key] = task
     for key in reversed(graph):  # a recorded stage that a stage left to run reads from runs again
         if key in todo and key not in finished:
             for need in graph[key]:
@@ -451,13 +501,12 @@ def run_challenge(
         raise ValueError("jobs is for the local backend: Ray runs as many stages at once as the cluster has CPUs.")
     budget = BUDGETS[budget] if isinstance(budget, str) else budget
     out_dir = Path(root).resolve() / challenge.name
-    stage_steps = {**challenge.steps.get(budget.name, {}), **(steps or {})}
-    fast = challenge.fast_hyperparams if budget.fast else {}
     th.set_num_threads(1)  # this process only waits for the stages' processes
-    ctx_kwargs = {"budget": budget, "steps": stage_steps, "fast_hyperparams": fast, "verbose": verbose, "threads": threads}
+    ctx_kwargs = {**context_kwargs(challenge, budget, steps), "verbose": verbose, "threads": threads}
     tasks, markers = plan(challenge, seeds, out_dir, ctx_kwargs)
     if dry_run:
-        print(format_plan(f"{challenge.name} ({budget.name} budget, seeds {seeds})", tasks, markers))
+        title = f"{challenge.name} ({budget.name} budget, seeds {seeds})"
+        print(format_plan(title, tasks, markers, read_record(out_dir)))
         return {"to_run": [task.key for task in tasks], "finished": list(markers)}
     for task in tasks:  # interrupted, or configured differently: start over (a started stage is one with a log)
         if task.stage_dir.exists():
@@ -528,14 +577,19 @@ def run_challenge(
     return summary
 
 
-def format_plan(title: str, tasks: Sequence[StageTask], finished: dict[str, dict[str, Any]]) -> str:
+def format_plan(
+    title: str, tasks: Sequence[StageTask], finished: dict[str, dict[str, Any]], record: dict[str, Any] | None = None
+) -> str:
     """
     What a run would do (``--dry-run``): the stages finished (recorded in ``summary.json`` where their models are
-    gone), then those to run, each with what it does and, for a zoo stage, its command line.
+    gone), then those to run, each with what it does, for a zoo stage its command line and, for one that a record
+    (its marker, else ``summary.json``) holds under another configuration, the fields that differ
+    (:func:`~sb3_pilot.experiments.challenges.records.config_differences`).
 
     :param title: the first line's start
     :param tasks: the stages to run (:func:`plan`)
     :param finished: the markers of the finished stages (:func:`plan`)
+    :param record: the challenge's ``summary.json`` (:func:`read_record`), for what differs from it
     """
     lines = [f"{title}: {len(tasks)} stage{'s' * (len(tasks) != 1)} to run, {len(finished)} finished"]
     for key, marker in finished.items():
@@ -545,6 +599,14 @@ def format_plan(title: str, tasks: Sequence[StageTask], finished: dict[str, dict
         lines.append(f"  run   {stage_name(task.key)}: {task.stage.describe(task.ctx, task.stage_dir)}")
         if isinstance(task.stage, ZooTrain):
             lines.append(f"        {task.stage.command(task.ctx, task.stage_dir)}")
+        marker_path = task.stage_dir / STAGE_MARKER
+        recorded = (record or {}).get("stages", {}).get(task.key)
+        recorded = json.loads(marker_path.read_text()) if marker_path.exists() else recorded
+        if recorded is not None and "config" in recorded and recorded.get("config_hash") != task.digest:
+            differences = config_differences(recorded["config"], task.config) or [
+                "none in its own configuration, but its config_hash (edited by hand, or a stage it reads from differs)"
+            ]
+            lines.append(f"        recorded with another configuration: {'; '.join(differences)}")
     return "\n".join(lines)
 
 

@@ -16,6 +16,8 @@ its budget and the hashes of the stages it reads from). A stage whose marker mat
 
 from __future__ import annotations
 
+import copy
+import functools
 import hashlib
 import json
 import shlex
@@ -75,6 +77,51 @@ class Import:
         return f"__import__({self.module!r}, fromlist=[{self.name!r}]).{self.name}"
 
 
+def zoo_value(value: Any) -> Any:
+    """
+    A YAML entry's value as the zoo reads it: a ``policy_kwargs`` string such as ``"dict(net_arch=[64, 64])"``
+    evaluated (RL Zoo evaluates these strings), anything else as it is.
+    """
+    return eval(value) if isinstance(value, str) else value  # the zoo's own rule for these keys
+
+
+def zoo_text(value: Any) -> str:
+    """
+    A ``-params`` value as Python text the zoo evaluates back to ``value``: its ``repr``, but classes and functions
+    written as the expression that imports them (:class:`Import`).
+    """
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{key!r}: {zoo_text(item)}" for key, item in value.items()) + "}"
+    if isinstance(value, list | tuple):
+        items = ", ".join(zoo_text(item) for item in value)
+        return f"[{items}]" if isinstance(value, list) else f"({items}{',' * (len(value) == 1)})"
+    if isinstance(value, type) or callable(value):
+        return repr(Import(value.__module__, value.__qualname__))
+    return repr(value)
+
+
+#: The keys of a YAML entry whose string values RL Zoo evaluates as Python (``"dict(net_arch=[64, 64])"``).
+EVALUATED_KEYS = ("policy_kwargs", "replay_buffer_kwargs", "monitor_kwargs", "normalize")
+
+
+def zoo_hyperparams(config: dict[str, Any]) -> dict[str, Any]:
+    """
+    The hyperparameters a zoo stage trains with, as RL Zoo merges them: its YAML entry (``preset``) with the command
+    line's ``-params`` over it key by key, the strings it evaluates (:data:`EVALUATED_KEYS`) evaluated.
+
+    :param config: a :class:`ZooTrain` stage's configuration (:meth:`ZooTrain.config`: ``zoo`` and ``preset``)
+    """
+    args = config["zoo"]
+    start = end = args.index("-params") + 1
+    while end < len(args) and not args[end].startswith("--"):
+        end += 1
+    hyperparams = dict(config["preset"])
+    for item in args[start:end]:
+        key, _, value = item.partition(":")
+        hyperparams[key] = eval(value)  # as the zoo's StoreDict reads -params
+    return {key: zoo_value(value) if key in EVALUATED_KEYS else value for key, value in hyperparams.items()}
+
+
 @dataclass(frozen=True)
 class Budget:
     """
@@ -85,8 +132,9 @@ class Budget:
     :param n_evals: evaluations per training run (the zoo's ``--eval-freq`` is ``steps // n_evals``)
     :param eval_episodes: episodes per evaluation (the zoo's ``--eval-episodes``) and of a guidance stage
     :param distill: keyword arguments of :func:`~sb3_pilot.distill_goal_planner`
-    :param hyperparams: overrides of every zoo stage (``-params``), e.g. small networks for ``smoke``
-    :param fast: apply each challenge's ``fast_hyperparams`` (settings measured to learn quickly on this machine)
+    :param hyperparams: overrides of every zoo stage's YAML entry (``-params``), e.g. small networks for ``smoke``
+    :param recipes: read each challenge's recipe (its ``recipe`` folder under ``conf_dir``: the settings measured to
+        learn quickly on this machine) instead of the plain ``conf_dir`` files
     """
 
     name: str
@@ -95,7 +143,7 @@ class Budget:
     eval_episodes: int
     distill: dict[str, Any]
     hyperparams: dict[str, Any] = field(default_factory=dict)
-    fast: bool = True
+    recipes: bool = True
 
 
 @dataclass
@@ -107,7 +155,7 @@ class StageContext:
     :param seed: the random seed
     :param budget: the budget
     :param steps: env steps of each stage at this budget (None: the YAML's ``n_timesteps``)
-    :param fast_hyperparams: the challenge's ``fast_hyperparams`` if the budget applies them, else empty
+    :param recipe: the challenge's recipe folder if the budget reads recipes, else None (:meth:`ZooTrain.conf_file_at`)
     :param outputs: main output file of each finished stage (model zip, planner file, result file)
     :param verbose: verbosity of the zoo and of SB3 (0 or 1)
     :param threads: torch (and OpenMP) threads of the stage's process
@@ -117,7 +165,7 @@ class StageContext:
     seed: int
     budget: Budget
     steps: dict[str, int | None]
-    fast_hyperparams: dict[str, dict[str, Any]]
+    recipe: str | None = None
     outputs: dict[str, Path] = field(default_factory=dict)
     verbose: int = 0
     threads: int = 1
@@ -174,6 +222,12 @@ def play_episodes(
         yield observation, info
 
 
+@functools.lru_cache(maxsize=32)
+def _yaml_entries(path: Path, modified_ns: int) -> dict[str, Any]:
+    """A YAML file's entries, read once per version of the file (a run plans hundreds of stages from a few files)."""
+    return yaml.safe_load(path.read_text())
+
+
 @dataclass(frozen=True)
 class ZooTrain:
     """
@@ -182,7 +236,8 @@ class ZooTrain:
     :param name: stage name (folder name, key of its output)
     :param algo: zoo algorithm (``udpo``, ``sac``)
     :param env_id: task
-    :param conf_file: YAML in ``hyperparams/`` (the budget's ``conf_dir`` is prepended)
+    :param conf_file: YAML in ``hyperparams/`` (:meth:`conf_file_at`: the budget's ``conf_dir`` and the challenge's
+        recipe folder, where it has this file, are prepended)
     :param params: ``-params`` computed from earlier stages' outputs (planner paths, transfer callbacks)
     :param needs: stages whose outputs ``params`` reads
     :param method: label in the summary if this stage is a compared method on the target task
@@ -214,33 +269,58 @@ class ZooTrain:
         run_dir = zoo_run_dir(stage_dir, self.algo, self.env_id)
         return run_dir / f"{self.env_id.replace('/', '-')}.zip"
 
+    def conf_file_at(self, ctx: StageContext) -> str:
+        """
+        The YAML the stage reads, relative to ``hyperparams/``: ``<conf_dir><recipe>/<conf_file>`` where the challenge's
+        recipe (read at this budget) has that file, else ``<conf_dir><conf_file>``.
+        """
+        if ctx.recipe is not None and (hyperparams_dir() / ctx.budget.conf_dir / ctx.recipe / self.conf_file).is_file():
+            return f"{ctx.budget.conf_dir}{ctx.recipe}/{self.conf_file}"
+        return ctx.budget.conf_dir + self.conf_file
+
     def preset(self, ctx: StageContext) -> dict[str, Any]:
-        """The conf file's entry for this stage's task: the hyperparameters that the command's ``-params`` override."""
-        conf_file = ctx.budget.conf_dir + self.conf_file
-        return yaml.safe_load((hyperparams_dir() / conf_file).read_text())[self.env_id]
+        """
+        The stage's YAML entry (:meth:`conf_file_at`, its task's entry): the hyperparameters that the budget's and the
+        stage's ``-params`` override.
+
+        :raise ValueError: when the file has no entry for the stage's task (naming the entries it has)
+        """
+        conf_file = self.conf_file_at(ctx)
+        path = hyperparams_dir() / conf_file
+        entries = _yaml_entries(path, path.stat().st_mtime_ns)
+        if self.env_id not in entries:
+            raise ValueError(
+                f"Stage {self.name!r}: hyperparams/{conf_file} has no entry {self.env_id!r} (its entries: "
+                f"{', '.join(entries)})."
+            )
+        return copy.deepcopy(entries[self.env_id])
 
     def env_steps(self, ctx: StageContext) -> int:
         """The env steps it trains for: the budget's for this stage, else the conf file's ``n_timesteps``."""
         return ctx.steps.get(self.name) or int(self.preset(ctx)["n_timesteps"])
 
     def zoo_args(self, ctx: StageContext, stage_dir: Path) -> list[str]:
-        """Arguments of ``python -m sb3_pilot.experiments.zoo`` for this stage (but verbosity)."""
-        conf_file = ctx.budget.conf_dir + self.conf_file
+        """
+        Arguments of ``python -m sb3_pilot.experiments.zoo`` for this stage (but verbosity). The merge rule: the YAML
+        entry (:meth:`preset`), then the budget's ``hyperparams``, then the stage's ``params``, each key replacing the
+        one before, but ``policy_kwargs``, merged key by key (the entry's ``net_arch``, a budget's ``net_arch`` and a
+        stage's ``freeze_state_planner`` all hold); ``-params`` holds what the budget and the stage set.
+        """
+        conf_file = self.conf_file_at(ctx)
         entry = self.preset(ctx)
         steps = self.env_steps(ctx)
         layers = [
             # a buffer larger than the run is never filled: allocate (and save) only what is used
             {"buffer_size": min(int(entry["buffer_size"]), max(steps, 1000))},
-            ctx.fast_hyperparams.get("*", {}),
-            ctx.fast_hyperparams.get(self.algo, {}),
             ctx.budget.hyperparams,
             self.params(ctx.outputs) if self.params else {},
         ]
         hyperparams: dict[str, Any] = {key: value for layer in layers for key, value in layer.items()}
-        # policy_kwargs merge key by key (a budget's net_arch and a stage's freeze_state_planner both hold)
-        policy_kwargs = {key: value for layer in layers for key, value in layer.get("policy_kwargs", {}).items()}
-        if policy_kwargs:
-            hyperparams["policy_kwargs"] = policy_kwargs
+        if "policy_kwargs" in hyperparams:  # the zoo would replace the entry's: merged here, key by key
+            layers.insert(0, {"policy_kwargs": zoo_value(entry.get("policy_kwargs", {}))})
+            hyperparams["policy_kwargs"] = {
+                key: value for layer in layers for key, value in layer.get("policy_kwargs", {}).items()
+            }
         # HER cannot sample before an episode has ended: SB3's default (100) is too early with 4 x 500-step envs
         env_kwargs = self.env_kwargs or entry.get("env_kwargs", {})  # the zoo's --env-kwargs replace the YAML's
         if self.env_id not in gym.registry:
@@ -261,7 +341,7 @@ class ZooTrain:
         args += ["--eval-freq", str(max(steps // ctx.budget.n_evals, 1)), "--eval-episodes", str(ctx.budget.eval_episodes)]
         if self.checkpoints:  # only then in the command: the other stages' hashes stay
             args += ["--save-freq", str(max(steps // self.checkpoints, 1))]
-        args += ["-params", *(f"{key}:{value!r}" for key, value in hyperparams.items())]
+        args += ["-params", *(f"{key}:{zoo_text(value)}" for key, value in hyperparams.items())]
         if self.env_kwargs:
             args += ["--env-kwargs", *(f"{key}:{value!r}" for key, value in self.env_kwargs.items())]
         if self.eval_env_kwargs:
