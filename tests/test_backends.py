@@ -175,6 +175,14 @@ def test_stage_graphs() -> None:
             "her": (),
             "mega": (),
         },
+        "zero-shot-ant-maze-v1": {
+            "maze": (),
+            "distill": ("maze",),
+            "controller": (),
+            "chosen": ("controller",),
+            "pilot": ("distill", "chosen"),
+            "unguided": ("chosen",),
+        },
     }
     for name, challenge in CHALLENGES.items():
         graph = stage_graph(challenge, [0, 1])

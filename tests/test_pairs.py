@@ -30,7 +30,10 @@ PAIRS = {
     "wall-maze-car": ("Pilot/WallMaze2D-v0", "Pilot/WallMaze2DCar-v0"),  # beyond the paper: a SAC + HER teacher
 }
 #: Zero-shot pairs on gymnasium-robotics' own IDs, compared with the same controller unguided (no SAC + HER stage)
-UNGUIDED_BASELINE = {"pointmaze-to-antmaze": ("PointMaze_UMaze-v3", "AntMaze_UMaze-v5")}
+UNGUIDED_BASELINE = {
+    "pointmaze-to-antmaze": ("PointMaze_UMaze-v3", "AntMaze_UMaze-v5"),
+    "zero-shot-ant-maze-v1": ("Pilot/Maze2D-v0", "Pilot/AntMaze-v1"),  # the literature's Ant
+}
 BONUS = ("vec-to-image", "vec-to-image-reacher", "complex-morph", "maze-car")
 PIXEL_POLICY = "sb3_pilot.common.torch_layers.PixelGoalSACPolicy"
 
