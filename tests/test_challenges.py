@@ -89,8 +89,9 @@ def test_high_dim_action_smoke_resume_and_plots(tmp_path: Path, capsys: pytest.C
     check_summary(summary, "high-dim-action", run_dir)
     pilot = summary["stages"]["seed_0/pilot"]["config"]["zoo"]
     assert "sb3_pilot.transfer.StatePlannerTransferCallback" in pilot[-1] and "--conf-file" in pilot
-    for stage in ("source", "pilot", "her"):  # RL-Zoo's VecNormalize on every stage, the baseline's included
-        assert "normalize:True" in summary["stages"][f"seed_0/{stage}"]["config"]["zoo"], stage
+    for stage in ("source", "pilot", "her"):  # RL-Zoo's VecNormalize on every stage (the recipe's), the baseline's included
+        config = summary["stages"][f"seed_0/{stage}"]["config"]
+        assert config["preset"]["normalize"] is True and "cpu/fetch/" in " ".join(config["zoo"]), stage
     # the target's saved statistics are the source's, frozen with the transferred planner
     saved = {
         stage: load_vec_normalize(next((run_dir / "models" / "seed_0" / stage).rglob("vecnormalize.pkl")))
