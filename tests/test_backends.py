@@ -175,15 +175,10 @@ def test_stage_graphs() -> None:
             "her": (),
             "mega": (),
         },
-        "zero-shot-ant-maze-v1": {
-            "maze": (),
-            "distill": ("maze",),
-            "controller": (),
-            "chosen": ("controller",),
-            "pilot": ("distill", "chosen"),
-            "unguided": ("chosen",),
-        },
     }
+    # the literature's Ant: the same stages but the baselines trained on Ant-Maze
+    zero_shot = expected["zero-shot-ant-maze"]
+    expected["zero-shot-ant-maze-v1"] = {name: needs for name, needs in zero_shot.items() if name not in ("her", "mega")}
     for name, challenge in CHALLENGES.items():
         graph = stage_graph(challenge, [0, 1])
         keys = list(graph)

@@ -163,6 +163,39 @@ ZERO_SHOT_PLANNER_STAGES = (
     Distill("distill", "maze"),
 )
 
+
+def _zero_shot_controller_stages(version: str, checkpoints: int, **guidance: Any) -> tuple[Stage, ...]:
+    """
+    Zero-shot Ant-Maze's controller stages on the Ant of ``version`` (``Pilot/AntLocomotion-<version>``): the shipped
+    controller's recipe (starts and headings anywhere, goals 0.5-3 units away that move on, 500-step episodes ending on
+    a flip, goal-relative inputs: zoo_runs/zero-shot-ant-maze/controller), the checkpoint that is guided, chosen on
+    held-out episodes of its own open-ground task (no Ant-Maze episode: zero-shot) by success, ties by mean final
+    distance (neighbouring checkpoints of one run guided at 0.0 to 0.83: zoo_runs/zero-shot-ant-maze/controller_seed1),
+    and its evaluations on ``Pilot/AntMaze-<version>``: guided by the ``distill`` stage's planner, and shown the real
+    goal (what the landmarks add).
+
+    :param version: ``"v0"`` (gymnasium's Ant) or ``"v1"`` (the literature's)
+    :param checkpoints: checkpoints the controller keeps (:class:`ZooTrain`'s)
+    :param guidance: the guided evaluation's ``horizon`` or ``lead`` (:class:`ControllerEvaluation`'s)
+    """
+    maze = f"Pilot/AntMaze-{version}"
+    return (
+        ZooTrain("controller", "sac", f"Pilot/AntLocomotion-{version}", "ant_controller_upright.yml", checkpoints=checkpoints),
+        ChooseCheckpoint("chosen", "controller", episodes=30),
+        ControllerEvaluation(
+            "pilot",
+            "chosen",
+            maze,
+            "PILoT zero-shot (0 Ant-Maze steps)",
+            planner="distill",
+            episodes=30,
+            compared_with="unguided",
+            **guidance,
+        ),
+        ControllerEvaluation("unguided", "chosen", maze, "the controller unguided (0 Ant-Maze steps)", episodes=30),
+    )
+
+
 HER, PLANNER_TRANSFER = "SAC+HER (scratch)", "UDPO+PILoT (planner transfer)"
 #: MEGA (Pitis et al., 2020) on SAC+HER: the paper's exploration baseline (:mod:`sb3_pilot.baselines`).
 HER_MEGA = "SAC+HER+MEGA (baseline)"
@@ -484,31 +517,11 @@ CHALLENGES: dict[str, Challenge] = {
             "Pilot/AntMaze-v0",
             (
                 *ZERO_SHOT_PLANNER_STAGES,
-                # the shipped controller's recipe: starts and headings anywhere, goals 0.5-3 units away that move
-                # on, 500-step episodes ending on a flip, goal-relative inputs (zoo_runs/zero-shot-ant-maze/controller);
-                # a checkpoint kept every seventh of its steps (every 50k at the cpu budget)
-                ZooTrain("controller", "sac", "Pilot/AntLocomotion-v0", "ant_controller_upright.yml", checkpoints=7),
-                # the checkpoint that is guided: chosen on held-out episodes of its own open-ground task (no Ant-Maze
-                # episode: zero-shot), by success, ties by mean final distance (neighbouring checkpoints of one run
-                # guided at 0.0 to 0.83: zoo_runs/zero-shot-ant-maze/controller_seed1/README.md)
-                ChooseCheckpoint("chosen", "controller", episodes=30),
                 # k = 3, measured on this challenge's seed-0 controller and planner (a planner distilled from the
                 # teacher's real steps, 0.42 a step): success k = 1 / 2 / 3 0.23 / 0.47 / 0.67 on seeds 0-2, k = 2 / 3
-                # / 4 0.63 / 0.63 / 0.30 on held-out seeds 3-5 (zoo_runs/zero-shot-ant-maze-earlier-presets/README.md)
-                ControllerEvaluation(
-                    "pilot",
-                    "chosen",
-                    "Pilot/AntMaze-v0",
-                    "PILoT zero-shot (0 Ant-Maze steps)",
-                    planner="distill",
-                    horizon=3,
-                    episodes=30,
-                    compared_with="unguided",
-                ),
-                # the same controller shown the real goal: what the landmarks add
-                ControllerEvaluation(
-                    "unguided", "chosen", "Pilot/AntMaze-v0", "the controller unguided (0 Ant-Maze steps)", episodes=30
-                ),
+                # / 4 0.63 / 0.63 / 0.30 on held-out seeds 3-5 (zoo_runs/zero-shot-ant-maze-earlier-presets/README.md);
+                # a checkpoint kept every seventh of its steps (every 50k at the cpu budget)
+                *_zero_shot_controller_stages("v0", checkpoints=7, horizon=3),
                 ZooTrain("her", "sac", "Pilot/AntMaze-v0", "sac.yml", method=HER),
                 # the paper's exploration baseline trained on Ant-Maze, SAC+HER's recipe (hyperparams/cpu/sac_mega.yml)
                 ZooTrain("mega", "sac", "Pilot/AntMaze-v0", "sac_mega.yml", method=HER_MEGA),
@@ -539,25 +552,11 @@ CHALLENGES: dict[str, Challenge] = {
             (
                 # the v0 challenge's planner stages, unchanged (the planner knows nothing of the Ant)
                 *ZERO_SHOT_PLANNER_STAGES,
-                # the v0 challenge's recipe on the literature's Ant (its YAML entry: the same settings); a checkpoint
-                # every 50k steps at the cpu budget
-                ZooTrain("controller", "sac", "Pilot/AntLocomotion-v1", "ant_controller_upright.yml", checkpoints=4),
-                ChooseCheckpoint("chosen", "controller", episodes=30),
-                # the horizon of each seed's planner: its landmark about 2.75 units ahead, the lead that guided the
-                # sizing controllers best on average (zoo_runs/ant-v1-controller/README.md)
-                ControllerEvaluation(
-                    "pilot",
-                    "chosen",
-                    "Pilot/AntMaze-v1",
-                    "PILoT zero-shot (0 Ant-Maze steps)",
-                    planner="distill",
-                    lead=2.75,
-                    episodes=30,
-                    compared_with="unguided",
-                ),
-                ControllerEvaluation(
-                    "unguided", "chosen", "Pilot/AntMaze-v1", "the controller unguided (0 Ant-Maze steps)", episodes=30
-                ),
+                # the v0 challenge's recipe on the literature's Ant (its YAML entry: the same settings), a checkpoint
+                # every 50k steps at the cpu budget; the horizon of each seed's planner: its landmark about 2.75 units
+                # ahead, the lead that guided the sizing controllers best on average
+                # (zoo_runs/ant-v1-controller/README.md)
+                *_zero_shot_controller_stages("v1", checkpoints=4, lead=2.75),
             ),
             steps={
                 "smoke": {"maze": 300, "controller": 500, "chosen": 50, "pilot": 500, "unguided": 500},
