@@ -22,6 +22,7 @@ from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
 from sb3_pilot.experiments.challenges.definitions import (
     FETCH_PUSH_SOURCE,
     FETCH_REACH_SOURCE,
+    SHIPPED_V1_DIR,
     SOURCES_DIR,
     UMAZE_SHIPPED_DIR,
 )
@@ -40,7 +41,7 @@ def test_reuse_shipped_names_shipped_files():
     for challenge in REUSE_SHIPPED.values():
         shipped = [stage.path for stage in challenge.stages if isinstance(stage, Shipped)]
         assert shipped and all(path.is_file() for path in shipped)
-        assert all({SHIPPED_DIR, SOURCES_DIR, UMAZE_SHIPPED_DIR} & set(path.parents) for path in shipped)
+        assert all({SHIPPED_DIR, SHIPPED_V1_DIR, SOURCES_DIR, UMAZE_SHIPPED_DIR} & set(path.parents) for path in shipped)
 
 
 def test_shipped_hash_covers_vecnormalize(tmp_path: Path):
@@ -125,6 +126,29 @@ def test_reuse_shipped_smoke(tmp_path: Path):
     assert len(guidance["episodes"][0]["landmarks"]) == 51  # reset + 50 steps
     assert not list(run_dir.rglob("*.zip"))  # nothing trained, nothing copied
     assert (run_dir / "landmarks.png").stat().st_size > 10_000  # the shipped planner's landmarks, the guided Ant
+
+
+def test_reuse_shipped_v1_smoke(tmp_path: Path):
+    """The literature's-Ant shipped files: k chosen from the lead on the shipped planner, guided and unguided stages."""
+    challenges_main(["zero-shot-ant-maze-v1", "--reuse-shipped", "--budget", "smoke", "--root", str(tmp_path)])
+    run_dir = tmp_path / REUSE_SHIPPED["zero-shot-ant-maze-v1"].name
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert set(summary["stages"]) == {f"seed_0/{name}" for name in ("distill", "chosen", "pilot", "unguided")}
+    guidance = json.loads((run_dir / "models" / "seed_0" / "pilot" / "guidance.json").read_text())
+    assert guidance["horizon"] == 5  # the shipped planner's landmark ~2.75 ahead (its challenge seed's own k)
+    assert len(guidance["episodes"][0]["landmarks"]) == 51
+
+
+def test_shipped_v1_controller_refused_on_gymnasiums_ant():
+    """The v1 controller ships with its zoo settings, so guiding it on a v0 (gymnasium's Ant) task is refused by name."""
+    from sb3_pilot.experiments.challenges.controller import check_controller_ant
+
+    controller = SHIPPED_V1_DIR / "ant_v1_controller_seed1_sac_200k.zip"
+    env = gym.make("Pilot/AntMaze-v0")
+    with pytest.raises(ValueError, match="trained on 'hrl'"):
+        check_controller_ant(controller, env)
+    check_controller_ant(controller, gym.make("Pilot/AntMaze-v1"))  # its own Ant: accepted
+    env.close()
 
 
 def test_reuse_shipped_only_where_shipped(tmp_path: Path):

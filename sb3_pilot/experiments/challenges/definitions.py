@@ -570,6 +570,9 @@ CHALLENGES: dict[str, Challenge] = {
 
 #: The controller and planners shipped for Zero-shot Ant-Maze (see the README there for how each was made).
 SHIPPED_DIR = REPO_DIR / "zoo_runs" / "zero-shot-ant-maze" / "controller"
+#: The controller and planner shipped for Zero-shot Ant-Maze on the literature's Ant (``zero-shot-ant-maze-v1``'s
+#: training seed 1; ``zoo_runs/zero-shot-ant-maze-v1/shipped/README.md``).
+SHIPPED_V1_DIR = REPO_DIR / "zoo_runs" / "zero-shot-ant-maze-v1" / "shipped"
 #: The Maze2D goal planner Maze-Car's ``--reuse-shipped`` run shares between its seeds.
 MAZE_CAR_PLANNER = SHIPPED_DIR / "maze2d_planner.pt"
 #: The trained sources shipped in the repository, laid out as the zoo saves a run (``zoo_runs/sources/shipped/README.md``
@@ -646,6 +649,32 @@ REUSE_SHIPPED: dict[str, Challenge] = {
             ),
         ),
         steps={"smoke": {"pilot": 50}},  # smoke: 50-step episodes
+    ),
+    # one training seed of zero-shot-ant-maze-v1 (the seed whose guided score was best: a demonstration, not a verdict)
+    "zero-shot-ant-maze-v1": Challenge(
+        "zero-shot-ant-maze-v1-shipped",
+        "the shipped Maze2D goal planner (UDPO, wall margin 1) guiding the shipped open-ground SAC controller of the "
+        "literature's Ant (cpu/ant_controller_upright.yml on Pilot/AntLocomotion-v1, 200k steps) on Ant-Maze-v1 "
+        "(0 Ant-Maze steps, no training stage), vs the same controller unguided",
+        "Pilot/AntMaze-v1",
+        (
+            Shipped("distill", SHIPPED_V1_DIR / "maze2d_planner_seed1.pt"),
+            Shipped("chosen", SHIPPED_V1_DIR / "ant_v1_controller_seed1_sac_200k.zip"),
+            ControllerEvaluation(
+                "pilot",
+                "chosen",
+                "Pilot/AntMaze-v1",
+                "PILoT zero-shot, shipped models (0 Ant-Maze steps)",
+                planner="distill",
+                episodes=30,
+                lead=2.75,
+                compared_with="unguided",
+            ),
+            ControllerEvaluation(
+                "unguided", "chosen", "Pilot/AntMaze-v1", "the controller unguided (0 Ant-Maze steps)", episodes=30
+            ),
+        ),
+        steps={"smoke": {"pilot": 50, "unguided": 50}},  # smoke: 50-step episodes
     ),
     # one source for every seed: the shipped Fetch-Reach UDPO, whose state planner every seed's target reuses
     "high-dim-action": _from_shipped_source(
