@@ -38,7 +38,9 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from rliable import library, metrics
+
+# rliable (with arch, pandas and scipy.stats: ~1.5 s of CPU) is imported where it is used, so that the processes that
+# import this module for its names (every challenge stage's) do not pay for it
 
 #: Per-seed scores of a method, IQM-aggregated.
 METRICS = ("area", "final_success", "steps_to_50", "steps_to_90")
@@ -145,6 +147,8 @@ def _estimates(data: Any, func: Callable[..., np.ndarray], seed: int, reps: int)
         raise ValueError(f"reps must be a positive number of bootstrap replications, got {reps!r}.")
     # rliable's StratifiedBootstrap draws its indices from NumPy's global generator (np.random.choice), whatever
     # random_state it is given: seed that one for the call, and put its state back afterwards
+    from rliable import library
+
     state = np.random.get_state()
     np.random.seed(seed)
     try:
@@ -177,6 +181,8 @@ def _interval(scores: Any, func: Callable[..., float], seed: int, reps: int) -> 
 
 def iqm(scores: np.ndarray) -> float:
     """Interquartile mean of per-seed scores (rliable's ``aggregate_iqm``)."""
+    from rliable import metrics
+
     return float(metrics.aggregate_iqm(scores))
 
 
@@ -292,6 +298,8 @@ def compare(
     pilot, her = (np.array([scores["area"] for scores in side]) for side in (pilot_scores, her_scores))
 
     def improvement(x: np.ndarray, y: np.ndarray) -> float:
+        from rliable import metrics
+
         return float(metrics.probability_of_improvement(x, y))
 
     def gain(x: np.ndarray, y: np.ndarray) -> float:
