@@ -16,6 +16,11 @@ Variants (``+`` combines them, e.g. ``hidden+stack3``):
   (the preset: gamma 0.99, 3e-4, 4 envs and a gradient step per 2 env steps); minibatches and networks unchanged;
 - ``goalpred``: the encoder also trained to predict the achieved goal (``PixelGoalSACPolicy``'s
   ``goal_prediction=1.0``), which needs the package's SAC: ``--algo lean_sac`` (SB3's SAC's numbers otherwise);
+- ``cheap``: the Fetch frames drawn without multisampling (``--env-kwargs antialias:False``, about 3x cheaper to
+  render on CPU; Fetch tasks only);
+- ``pilot``: HER + PILoT instead of SAC + HER: ``hyperparams/image/sac_pilot.yml`` (the same entry with the bonus
+  wrapper, ``displacement_cosine``, ``beta = 1``, and ``PilotHerReplayBuffer``) on the goal planner of ``--planner``
+  (a path with ``{seed}``: a planner per seed, e.g. distilled by ``challenges vec-to-image --stages distill``);
 - ``fast``: the GPU fast path, under the package's SAC: its gradient step captured as CUDA graphs
   (``cuda_graphs=True``) and the HER buffer's frames, relabelling and rewards on the model's device (the preset's
   ``replay_buffer_kwargs`` with ``storage="device"``). It changes how fast a run goes, not what it learns, but for
@@ -81,6 +86,8 @@ from sb3_pilot.experiments.zoo import hyperparams_dir
 
 #: The preset every run reads (``--conf-file``, in the package's ``hyperparams/``).
 CONF_FILE = "image/sac.yml"
+#: The same recipe with the PILoT bonus (the ``pilot`` variant).
+PILOT_CONF_FILE = "image/sac_pilot.yml"
 #: How a run's command calls the zoo entry, after ``python``.
 ZOO = ("-m", "sb3_pilot.experiments.zoo")
 #: The frame stack of the ``stack3`` variant.
@@ -92,6 +99,8 @@ GOAL_NORMALIZE = "dict(norm_obs_keys=['achieved_goal', 'desired_goal'], norm_rew
 GOAL_PREDICTION = 1.0
 #: Seconds a run stopped by the time limit has to save and exit before it is killed.
 GRACE_S = 30.0
+#: The bonus wrapper's name in :data:`PILOT_CONF_FILE`'s ``env_wrapper``.
+BONUS_WRAPPER = "sb3_pilot.PilotBonusWrapper"
 #: Success rate whose first step is reported.
 THRESHOLD = 0.5
 #: Fraction of the seeds the IQM cuts at each end (rliable's ``aggregate_iqm``, ``sb3_pilot.experiments.statistics``).
@@ -106,6 +115,8 @@ class Changes:
     """
 
     algo: str = "sac"
+    conf_file: str = CONF_FILE
+    bonus: bool = False
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     policy_kwargs: dict[str, Any] = field(default_factory=dict)
     extractor_kwargs: dict[str, Any] = field(default_factory=dict)
@@ -146,6 +157,16 @@ def _goalpred(changes: Changes) -> None:
     changes.policy_kwargs["goal_prediction"] = GOAL_PREDICTION
 
 
+def _cheap(changes: Changes) -> None:
+    changes.env_kwargs["antialias"] = False
+
+
+def _pilot(changes: Changes) -> None:
+    # the bonus wrapper of PILOT_CONF_FILE's entry, on the seed's planner (plan_runs)
+    changes.conf_file = PILOT_CONF_FILE
+    changes.bonus = True
+
+
 def _fast(changes: Changes) -> None:
     # LeanSAC's fast path: CUDA graphs and the device-resident HER buffer (eager, on CPU tensors, off CUDA)
     changes.algo = "lean_sac"
@@ -165,6 +186,8 @@ VARIANTS: dict[str, tuple[Callable[[Changes], None], str]] = {
         "the vector sources' RL settings: gamma 0.95, lr 1e-3, 1000 warm-up steps, 1 env, a gradient step per env step",
     ),
     "goalpred": (_goalpred, f"the encoder also predicts the achieved goal (goal_prediction={GOAL_PREDICTION}, lean_sac)"),
+    "cheap": (_cheap, "Fetch frames without multisampling (antialias=False)"),
+    "pilot": (_pilot, f"HER + PILoT: hyperparams/{PILOT_CONF_FILE}'s bonus (displacement_cosine) on --planner's planner"),
     "fast": (_fast, "the GPU fast path: CUDA graphs and the HER buffer on the device (lean_sac)"),
 }
 
@@ -192,16 +215,17 @@ def describe(name: str) -> str:
     return "; ".join(VARIANTS[part][1] for part in name.split("+"))
 
 
-def preset_entry(task: str) -> dict[str, Any]:
+def preset_entry(task: str, conf_file: str = CONF_FILE) -> dict[str, Any]:
     """
     :param task: a Gymnasium ID
-    :return: the task's entry in :data:`CONF_FILE`
+    :param conf_file: the preset's file under ``hyperparams/``
+    :return: the task's entry in ``conf_file``
     :raises ValueError: if the file has none (the task has no image preset), naming the tasks it has
     """
-    entries = yaml.safe_load((hyperparams_dir() / CONF_FILE).read_text())
+    entries = yaml.safe_load((hyperparams_dir() / conf_file).read_text())
     if task not in entries:
         raise ValueError(
-            f"--task {task} has no entry in hyperparams/{CONF_FILE} (no image preset); its tasks: {', '.join(entries)}."
+            f"--task {task} has no entry in hyperparams/{conf_file} (no image preset); its tasks: {', '.join(entries)}."
         )
     return entries[task]
 
@@ -223,8 +247,13 @@ def entry_kwargs(entry: dict[str, Any], key: str) -> dict[str, Any]:
     return dict(eval(value) if isinstance(value, str) else value)
 
 
-def variant_args(entry: dict[str, Any], changes: Changes) -> list[str]:
-    """The zoo arguments (``--env-kwargs``, ``-params``) that make the preset ``entry`` the variant of ``changes``."""
+def variant_args(entry: dict[str, Any], changes: Changes, planner: str | None = None) -> list[str]:
+    """
+    :param entry: the preset's entry
+    :param changes: a variant's
+    :param planner: the goal planner of the bonus wrapper (``pilot``; its entry's wrapper has another path)
+    :return: the zoo arguments (``--env-kwargs``, ``-params``) that make ``entry`` the variant of ``changes``
+    """
     args: list[str] = []
     if changes.env_kwargs:
         args += ["--env-kwargs", *(f"{key}:{literal(value)}" for key, value in changes.env_kwargs.items())]
@@ -239,9 +268,16 @@ def variant_args(entry: dict[str, Any], changes: Changes) -> list[str]:
     if changes.replay_buffer_kwargs:
         buffer_kwargs = {**entry_kwargs(entry, "replay_buffer_kwargs"), **changes.replay_buffer_kwargs}
         params.append(f"replay_buffer_kwargs:{literal(buffer_kwargs)}")
-    if changes.wrappers:
+    if changes.wrappers or planner is not None:
         wrappers = entry.get("env_wrapper") or []
         wrappers = [wrappers] if isinstance(wrappers, (str, dict)) else list(wrappers)
+        if planner is not None:
+            wrappers = [
+                {name: {**kwargs, "planner": planner} for name, kwargs in wrapper.items()}
+                if isinstance(wrapper, dict) and BONUS_WRAPPER in wrapper
+                else wrapper
+                for wrapper in wrappers
+            ]
         params.append(f"env_wrapper:{literal(wrappers + changes.wrappers)}")
     params += [f"{key}:{literal(value)}" for key, value in changes.hyperparams.items()]
     return [*args, "-params", *params] if params else args
@@ -283,14 +319,23 @@ def plan_runs(args: argparse.Namespace) -> list[Run]:
         raise ValueError(f"--variants repeats a variant: {args.variants}.")
     if args.jobs < 1 or (args.time_limit is not None and args.time_limit <= 0):
         raise ValueError("--jobs must be at least 1 and --time-limit positive.")
+    if any(parse_variant(name).bonus for name in args.variants):
+        if args.planner is None or "{seed}" not in args.planner:
+            raise ValueError("The pilot variant needs --planner, a path with {seed} (a goal planner per seed).")
+        missing = [args.planner.format(seed=seed) for seed in args.seeds if not Path(args.planner.format(seed=seed)).is_file()]
+        if missing:
+            raise ValueError(f"--planner: no planner at {', '.join(missing)}.")
     runs = []
     for variant in args.variants:
         changes = parse_variant(variant)
-        base = ["train", "--algo", changes.algo, "--env", args.task, "--conf-file", CONF_FILE]
-        extra = variant_args(entry, changes)
+        variant_entry = preset_entry(args.task, changes.conf_file)
+        base = ["train", "--algo", changes.algo, "--env", args.task, "--conf-file", changes.conf_file]
         for seed in args.seeds:
+            # the runs start in their own folders: the planner's absolute path
+            planner = str(Path(args.planner.format(seed=seed)).resolve()) if changes.bonus else None
             settings = ["--seed", str(seed), "-n", str(args.steps), "--eval-freq", str(args.eval_freq)]
             settings += ["--eval-episodes", str(args.eval_episodes), "--num-threads", "1", "-f", "."]
+            extra = variant_args(variant_entry, changes, planner)
             runs.append(Run(variant, seed, Path(args.root, variant, f"seed_{seed}"), [*base, *settings, *extra]))
     return runs
 
@@ -606,6 +651,7 @@ def parser() -> argparse.ArgumentParser:
     result.add_argument("--device", default=None, help="the zoo's --device of each run (default: the zoo's, auto)")
     result.add_argument("--jobs", type=int, default=1, help="runs side by side")
     result.add_argument("--time-limit", type=float, default=None, help="seconds after which the runs are stopped")
+    result.add_argument("--planner", default=None, help="the pilot variant's goal planner per seed: a path with {seed}")
     result.add_argument("--report", action="store_true", help="only write the table of what --root holds")
     return result
 

@@ -109,6 +109,36 @@ def test_variant_args_as_the_zoo_reads_them() -> None:
     }
 
 
+def test_pilot_and_cheap_variants(tmp_path: Path) -> None:
+    """pilot: image/sac_pilot.yml's entry with each seed's planner in its bonus wrapper; cheap: unaliased frames."""
+    for seed in (0, 1):
+        (tmp_path / f"planner_{seed}.pt").write_bytes(b"")
+    args = ["--task", "Pilot/FetchReachImage-v0", "--variants", "hidden+cheap", "hidden+cheap+pilot", "--seeds", "0", "1"]
+    args += ["--steps", "400", "--eval-freq", "200", "--root", str(tmp_path / "runs")]
+    runs = image_recipe.plan_runs(image_recipe.parser().parse_args([*args, "--planner", str(tmp_path / "planner_{seed}.pt")]))
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--env-kwargs", nargs="+", action=StoreDict)
+    parser.add_argument("-params", "--hyperparams", nargs="+", action=StoreDict)
+    for run in runs:
+        conf_file = run.args[run.args.index("--conf-file") + 1]
+        parsed = parser.parse_args(run.args[run.args.index("--env-kwargs") :])
+        assert parsed.env_kwargs == {"show_target": False, "antialias": False}
+        if run.variant == "hidden+cheap":
+            assert conf_file == image_recipe.CONF_FILE and parsed.hyperparams is None
+            continue
+        assert conf_file == image_recipe.PILOT_CONF_FILE
+        entry = image_recipe.preset_entry("Pilot/FetchReachImage-v0", conf_file)
+        (bonus,) = entry["env_wrapper"]
+        kwargs = {**bonus[image_recipe.BONUS_WRAPPER], "planner": str(tmp_path / f"planner_{run.seed}.pt")}
+        assert kwargs["similarity"] == "displacement_cosine"
+        assert parsed.hyperparams == {"env_wrapper": [{image_recipe.BONUS_WRAPPER: kwargs}]}
+    with pytest.raises(ValueError, match="needs --planner"):
+        image_recipe.plan_runs(image_recipe.parser().parse_args(args))
+    missing = ["--planner", str(tmp_path / "planner_{seed}_missing.pt")]
+    with pytest.raises(ValueError, match=r"no planner at .*planner_0_missing\.pt"):
+        image_recipe.plan_runs(image_recipe.parser().parse_args([*args, *missing]))
+
+
 def test_iqm_is_rliables() -> None:
     values = np.random.default_rng(0).uniform(size=9)
     assert image_recipe.iqm(values) == pytest.approx(iqm(values))
