@@ -1,5 +1,5 @@
 """
-The smallest genuine PILoT pipeline (``make demo``), two of its transfers on a CPU in about five minutes.
+The smallest genuine PILoT pipeline (``make demo``), two of its transfers on a CPU in about four minutes.
 
 Planner transfer: the High-Dim-Action challenge (Fetch-Reach) at the named ``demo`` budget, one seed.
 
@@ -12,12 +12,14 @@ Planner transfer: the High-Dim-Action challenge (Fetch-Reach) at the named ``dem
    ``<root>/high-dim-action/``.
 
 All three use RL-Zoo's FetchReach settings, VecNormalize included (``RL_ZOO_FETCH_NORMALIZED``); every stage is
-seeded, so the same seed gives the same numbers (one torch thread, CPU).
+seeded, so the same seed gives the same numbers on the same machine (one torch thread, CPU; another CPU's
+floating point follows other trajectories).
 
 Reward bonus: the Maze-Car pair with the shipped Maze2D goal planner (``maze-car --reuse-shipped``), HER + PILoT
-(displacement-cosine bonus) and SAC + HER on the car, ``--bonus-seeds`` seeds (2) at its ``cpu`` budget (20k
-steps), two stages at a time. A few seeds of a sparse-reward task cannot tell a gain from noise: the demo prints
-their areas under the success curve beside the run of the same stages committed in ``zoo_runs/maze-car-shipped``.
+(displacement-cosine bonus) and SAC + HER on the car side by side, ``--bonus-seeds`` seeds (1) at its ``cpu`` budget
+(20k steps; each further seed adds about two minutes on two cores). A few seeds of a sparse-reward task cannot tell a
+gain from noise: the demo prints their areas under the success curve beside the run of the same stages committed in
+``zoo_runs/maze-car-shipped``.
 
     python -m sb3_pilot.experiments.demo [--root runs/demo] [--seed 0] [--source-steps N] [--steps N]
         [--bonus-seeds N] [--bonus-steps N]
@@ -145,7 +147,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--source-steps", type=int, default=None, help="env steps of the source UDPO (budget: 8000)")
     parser.add_argument("--steps", type=int, default=None, help="env steps of each High-Dim-Action target run (budget: 4000)")
     parser.add_argument("--seed", type=int, default=0, help="High-Dim-Action's seed")
-    parser.add_argument("--bonus-seeds", type=int, default=2, help="Maze-Car seeds 0 .. N-1 (0: no bonus part)")
+    parser.add_argument("--bonus-seeds", type=int, default=1, help="Maze-Car seeds 0 .. N-1 (0: no bonus part)")
     parser.add_argument("--bonus-steps", type=int, default=None, help="env steps of each Maze-Car run (budget: 20000)")
     args = parser.parse_args(argv)
     if args.bonus_seeds < 0:
