@@ -31,7 +31,11 @@ Each run is ``python -m sb3_pilot.experiments.zoo train --algo sac --env TASK --
 run with ``OMP_NUM_THREADS=1`` in its own folder ``ROOT/<variant>/seed_<S>/``, beside ``command.txt`` (that command),
 ``train.log`` (its output) and ``status.json`` (wall seconds, exit status, whether the time limit stopped it); the
 zoo writes ``sac/<env name>_1/evaluations.npz`` there (``successes``, ``final_distances``). A run whose evaluations
-reach ``--steps`` is finished and skipped; any other is cleared and started again from scratch. A folder run with
+reach ``--steps`` is finished and skipped; any other is cleared and started again from scratch, unless it resumes:
+with ``--checkpoint-freq N`` each run keeps a checkpoint (the zoo's ``--checkpoint-freq N``: model, optimizers,
+replay buffer with its frames compressed; every ``N`` env steps and when it stops), and ``--resume`` continues each
+unfinished run from its checkpoint (the zoo's ``--resume``) instead of starting it again; a run started without one
+is refused before anything runs (without ``--resume``, it starts again). A folder run with
 another command (other steps, evaluations or variant; ``--device`` aside) is refused before anything runs: use
 another ``--root``. Up to ``--jobs`` runs go side by side; ``--time-limit S`` stops (SIGINT: the zoo saves its model
 and exits; killed after :data:`GRACE_S` seconds) the runs still going S seconds after the start, keeping their
@@ -325,6 +329,10 @@ def plan_runs(args: argparse.Namespace) -> list[Run]:
         missing = [args.planner.format(seed=seed) for seed in args.seeds if not Path(args.planner.format(seed=seed)).is_file()]
         if missing:
             raise ValueError(f"--planner: no planner at {', '.join(missing)}.")
+    if args.checkpoint_freq < 0:
+        raise ValueError(f"--checkpoint-freq must be >= 0 (0: no checkpoint), got {args.checkpoint_freq}.")
+    if args.resume and not args.checkpoint_freq:
+        raise ValueError("--resume continues the runs from their checkpoints: give the --checkpoint-freq they run with.")
     runs = []
     for variant in args.variants:
         changes = parse_variant(variant)
@@ -336,6 +344,7 @@ def plan_runs(args: argparse.Namespace) -> list[Run]:
             settings = ["--seed", str(seed), "-n", str(args.steps), "--eval-freq", str(args.eval_freq)]
             settings += ["--eval-episodes", str(args.eval_episodes), "--num-threads", "1", "-f", "."]
             extra = variant_args(variant_entry, changes, planner)
+            settings += ["--checkpoint-freq", str(args.checkpoint_freq)] if args.checkpoint_freq else []
             runs.append(Run(variant, seed, Path(args.root, variant, f"seed_{seed}"), [*base, *settings, *extra]))
     return runs
 
@@ -384,6 +393,22 @@ def is_finished(folder: Path, steps: int) -> bool:
     return data is not None and int(data["timesteps"][-1]) >= steps
 
 
+def has_checkpoint(folder: Path) -> bool:
+    """Whether the run in ``folder`` has a checkpoint to resume from (the zoo's ``--checkpoint-freq``)."""
+    return any(folder.glob("*/*_[0-9]*/checkpoint/checkpoint.json"))
+
+
+def check_resumable(runs: Sequence[Run], steps: int) -> None:
+    """:raises ValueError: naming the unfinished runs that started without a checkpoint (``--resume`` cannot go on)."""
+    missing = [str(run.folder) for run in runs if run.folder.exists() and not is_finished(run.folder, steps)]
+    missing = [folder for folder in missing if not has_checkpoint(Path(folder))]
+    if missing:
+        raise ValueError(
+            f"--resume: no checkpoint in {', '.join(missing)} (started without --checkpoint-freq, or stopped before its "
+            "first): drop --resume to start them again, or remove those folders."
+        )
+
+
 def check_recorded(runs: Sequence[Run]) -> None:
     """:raises ValueError: if a run's folder holds a run of another command (naming both)."""
     for run in runs:
@@ -399,17 +424,21 @@ def _stamp() -> str:
     return time.strftime("%H:%M:%S")
 
 
-def _start(run: Run, device: str | None) -> subprocess.Popen:
-    """Clear the run's folder, write its command there and start it (its output to ``train.log``)."""
-    if run.folder.exists():
+def _start(run: Run, device: str | None, resume: bool = False) -> subprocess.Popen:
+    """
+    Clear the run's folder, write its command there and start it (its output to ``train.log``); with ``resume`` and a
+    checkpoint there, continue it from that checkpoint instead (the folder kept, the output appended).
+    """
+    resume = resume and has_checkpoint(run.folder)
+    if run.folder.exists() and not resume:
         shutil.rmtree(run.folder)
-    run.folder.mkdir(parents=True)
+    run.folder.mkdir(parents=True, exist_ok=True)
     command = run.command(device)
     (run.folder / "command.txt").write_text(shlex.join(command) + "\n")
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1")
-    with open(run.folder / "train.log", "wb") as log:
+    with open(run.folder / "train.log", "ab" if resume else "wb") as log:
         return subprocess.Popen(
-            [sys.executable, *command[1:]],
+            [sys.executable, *command[1:], *(["--resume"] if resume else [])],
             cwd=run.folder,
             stdout=log,
             stderr=subprocess.STDOUT,
@@ -436,8 +465,13 @@ def _stop(processes: dict[int, tuple[Run, subprocess.Popen, float]], stopped: se
             process.wait()
 
 
-def execute(runs: Sequence[Run], device: str | None, jobs: int, time_limit: float | None, steps: int) -> None:
-    """Run the unfinished ``runs``, ``jobs`` at a time, stopping all at ``time_limit`` seconds (see the module doc)."""
+def execute(
+    runs: Sequence[Run], device: str | None, jobs: int, time_limit: float | None, steps: int, resume: bool = False
+) -> None:
+    """
+    Run the unfinished ``runs``, ``jobs`` at a time, stopping all at ``time_limit`` seconds, those with a checkpoint
+    resumed from it with ``resume`` (see the module doc).
+    """
     todo = [index for index, run in enumerate(runs) if not is_finished(run.folder, steps)]
     for run in runs:
         if is_finished(run.folder, steps):
@@ -473,8 +507,9 @@ def execute(runs: Sequence[Run], device: str | None, jobs: int, time_limit: floa
                 todo = []
             while todo and len(processes) < jobs:
                 index = todo.pop(0)
-                print(f"[{_stamp()}] {runs[index].variant} seed {runs[index].seed}: started", flush=True)
-                processes[index] = (runs[index], _start(runs[index], device), time.monotonic())
+                how = "resumed" if resume and has_checkpoint(runs[index].folder) else "started"
+                print(f"[{_stamp()}] {runs[index].variant} seed {runs[index].seed}: {how}", flush=True)
+                processes[index] = (runs[index], _start(runs[index], device, resume), time.monotonic())
             for index, (run, process, began) in list(processes.items()):
                 if process.poll() is not None:
                     record(index, run, process, began)
@@ -652,6 +687,10 @@ def parser() -> argparse.ArgumentParser:
     result.add_argument("--jobs", type=int, default=1, help="runs side by side")
     result.add_argument("--time-limit", type=float, default=None, help="seconds after which the runs are stopped")
     result.add_argument("--planner", default=None, help="the pilot variant's goal planner per seed: a path with {seed}")
+    result.add_argument(
+        "--checkpoint-freq", type=int, default=0, help="env steps between two checkpoints of each run (0: none)"
+    )
+    result.add_argument("--resume", action="store_true", help="continue the unfinished runs from their checkpoints")
     result.add_argument("--report", action="store_true", help="only write the table of what --root holds")
     return result
 
@@ -662,6 +701,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     try:
         runs = plan_runs(args)
         check_recorded(runs)
+        if args.resume and not args.report:
+            check_resumable(runs, args.steps)
         if args.device is not None and args.device.startswith("cuda") and not args.report:
             import torch
 
@@ -670,7 +711,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     except ValueError as error:
         raise SystemExit(f"image_recipe: {error}") from error
     if not args.report:
-        execute(runs, args.device, args.jobs, args.time_limit, args.steps)
+        execute(runs, args.device, args.jobs, args.time_limit, args.steps, args.resume)
     return report(runs, args, shlex.join(["python", "-m", "benchmarks.image_recipe", *argv]))
 
 

@@ -24,7 +24,8 @@ from sb3_pilot.sac import LeanSAC
 TASK = "Pilot/ReacherImage-v0"
 #: A stand-in for ``python -m sb3_pilot.experiments.zoo train``: the zoo's evaluations.npz at each --eval-freq up to -n,
 #: success rising with the step (faster for show_target:False), FAKE_ZOO_SLEEP seconds after each evaluation, exit 0 on
-#: SIGINT (as the zoo saves and exits).
+#: SIGINT (as the zoo saves and exits); with --checkpoint-freq a checkpoint at each evaluation, with --resume going on
+#: after the evaluations there.
 FAKE_ZOO = textwrap.dedent(
     """
     import os, sys, time
@@ -35,16 +36,24 @@ FAKE_ZOO = textwrap.dedent(
     value = lambda flag: args[args.index(flag) + 1]
     steps, every, episodes = int(value("-n")), int(value("--eval-freq")), int(value("--eval-episodes"))
     folder = Path("sac", value("--env").replace("/", "-") + "_1")
-    folder.mkdir(parents=True)
+    resume = "--resume" in args
+    folder.mkdir(parents=True, exist_ok=resume)
     pace = 2 if "show_target:False" in args else 1
-    done = []
+    done = np.load(folder / "evaluations.npz")["timesteps"].tolist() if resume else []
+    if resume:
+        Path("resumed").touch()
     try:
         for step in range(every, steps + 1, every):
+            if step in done:
+                continue
             done.append(step)
             rates = np.minimum(1.0, pace * np.array(done) / steps)
             successes = (np.arange(episodes) < np.round(rates[:, None] * episodes)).astype(float)
             final_distances = 0.2 * (1 - successes.mean(axis=1))
             np.savez(folder / "evaluations", timesteps=done, successes=successes, final_distances=final_distances)
+            if "--checkpoint-freq" in args:
+                (folder / "checkpoint").mkdir(exist_ok=True)
+                (folder / "checkpoint" / "checkpoint.json").write_text("{}")
             time.sleep(float(os.environ.get("FAKE_ZOO_SLEEP", "0")))
     except KeyboardInterrupt:
         Path("saved").touch()  # as the zoo saves its model on Ctrl-C
@@ -197,6 +206,29 @@ def test_time_limit_keeps_evaluations(
     assert not (root / "noshift" / "seed_2").exists()
 
 
+def test_stopped_runs_resume_from_their_checkpoints(tmp_path: Path, fake_zoo: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """
+    A run stopped by the time limit keeps its checkpoint; --resume continues it in its folder (not cleared) with the
+    zoo's --resume, its command unchanged; an unfinished run without a checkpoint is refused before anything runs.
+    """
+    monkeypatch.setenv("FAKE_ZOO_SLEEP", "60")
+    root = tmp_path / "runs"
+    args = recipe(root, "--variants", "noshift", "--seeds", "0", "--checkpoint-freq", "200")
+    image_recipe.main([*args, "--time-limit", "3"])
+    folder = root / "noshift" / "seed_0"
+    command = (folder / "command.txt").read_text()
+    assert "--checkpoint-freq 200" in command and (folder / "saved").exists()
+    monkeypatch.setenv("FAKE_ZOO_SLEEP", "0")
+    (root / "noshift" / "seed_1").mkdir()  # started, no checkpoint
+    with pytest.raises(SystemExit, match=r"--resume: no checkpoint in \S*seed_1 "):
+        image_recipe.main(recipe(root, "--variants", "noshift", "--seeds", "0", "1", "--checkpoint-freq", "200", "--resume"))
+    summary = image_recipe.main([*args, "--resume"])
+    assert (folder / "resumed").exists() and (folder / "saved").exists()  # the same folder, gone on
+    assert (folder / "command.txt").read_text() == command
+    (run,) = summary["variants"]["noshift"]["runs"]
+    assert run["timesteps"] == [200, 400] and run["finished"]
+
+
 def test_table_from_evaluation_files(tmp_path: Path) -> None:
     """--report: the table of the evaluations there, IQM over 4 seeds cutting the best and the worst."""
     root = tmp_path / "runs"
@@ -228,6 +260,8 @@ def test_table_from_evaluation_files(tmp_path: Path) -> None:
         (["--eval-freq", "120"], "a multiple of --eval-freq"),
         (["--seeds", "0", "0"], "distinct"),
         (["--jobs", "0"], "--jobs"),
+        (["--resume"], "--resume continues the runs from their checkpoints: give the --checkpoint-freq"),
+        (["--checkpoint-freq", "-5"], "--checkpoint-freq must be >= 0"),
     ],
 )
 def test_bad_input(tmp_path: Path, fake_zoo: Path, args: list[str], message: str) -> None:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import warnings
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -69,6 +70,29 @@ class GoalEvalCallback(EvalCallback):
             verbose=callback.verbose,
             warn=callback.warn,
         )
+
+    def restore_history(self, last_step: int) -> None:
+        """
+        Take back the evaluations of ``evaluations.npz`` up to ``last_step`` (those of a run resumed from a checkpoint
+        at that step), so that the file goes on with them instead of starting anew; later ones are left out (the
+        resumed run evaluates there again). Without a file, nothing.
+
+        :param last_step: the env steps of the checkpoint
+        """
+        path = None if self.log_path is None else Path(f"{self.log_path}.npz")
+        if path is None or not path.is_file():
+            return
+        with np.load(path) as data:
+            keep = np.asarray(data["timesteps"]) <= last_step
+            self.evaluations_timesteps = data["timesteps"][keep].tolist()
+            self.evaluations_results = data["results"][keep].tolist()
+            self.evaluations_length = data["ep_lengths"][keep].tolist()
+            if "successes" in data:
+                self.evaluations_successes = data["successes"][keep].tolist()
+            if "final_distances" in data:
+                self.evaluations_final_distance = data["final_distances"][keep].tolist()
+        if self.evaluations_results:
+            self.best_mean_reward = float(max(np.mean(results) for results in self.evaluations_results))
 
     def _log_success_callback(self, locals_: dict[str, Any], globals_: dict[str, Any]) -> None:
         if locals_["done"] and locals_.get("is_monitor_wrapped") and "episode" not in locals_["info"]:

@@ -5,7 +5,7 @@ package's own (the goal planner of a trained zoo run, written where ``sac_pilot.
 
 :func:`main` calls :func:`~sb3_pilot.experiments.zoo_plugin.register` (UDPO as the zoo's ``udpo``,
 :class:`~sb3_pilot.sac.LeanSAC` as ``lean_sac``, their ``--optimize`` samplers, the ``Pilot/`` and gymnasium-robotics'
-tasks), then runs the zoo's own command, as the RL-Zoo docs do for SBX, so every zoo flag works. Five conveniences on
+tasks), then runs the zoo's own command, as the RL-Zoo docs do for SBX, so every zoo flag works. Six conveniences on
 top of ``python -m rl_zoo3.cli``:
 
 - ``train`` without ``--conf-file`` reads this package's ``hyperparams/<algo>.yml`` for ``udpo`` and for any task
@@ -19,7 +19,12 @@ top of ``python -m rl_zoo3.cli``:
   ``--save-freq`` checkpoints of a normalised run carry their ``VecNormalize`` statistics, which the zoo saves with
   the final model only (:class:`~sb3_pilot.experiments.zoo_shim.PilotExperimentManager`);
 - ``plot_train -o FILE`` saves the figure (the zoo only calls ``plt.show()``), and ``-e Pilot/...`` finds the
-  zoo's log folders (named ``Pilot-...``).
+  zoo's log folders (named ``Pilot-...``);
+- ``train --checkpoint-freq N`` keeps a resumable checkpoint of an off-policy run (model, optimizers, replay buffer
+  with its frames compressed) every ``N`` env steps and when training ends or is interrupted, and ``train ...
+  --checkpoint-freq N --resume`` (the same command otherwise, ``-n`` aside) continues the latest run of the task in
+  the log folder from it (:class:`~sb3_pilot.experiments.zoo_shim.PilotExperimentManager`,
+  :mod:`sb3_pilot.common.checkpoint`).
 
 ``record_video`` and ``record_training`` are the zoo's scripts (``rl_zoo3.record_video``, ``rl_zoo3.record_training``)
 with UDPO and the tasks registered; ``record_training`` records each checkpoint through this entry point (the zoo's
@@ -48,7 +53,7 @@ from gymnasium.envs.registration import EnvSpec, load_env_creator
 
 from sb3_pilot.experiments.zoo_plugin import CONF_OF, hyperparams_dir, register
 from sb3_pilot.experiments.zoo_run import find_zoo_run, load_zoo_run
-from sb3_pilot.experiments.zoo_shim import record_video_calls_to, zoo_train_with
+from sb3_pilot.experiments.zoo_shim import PilotExperimentManager, record_video_calls_to, zoo_train_with
 
 #: Commands of ``python -m rl_zoo3.cli`` that :func:`main` runs.
 ZOO_COMMANDS = ("train", "enjoy", "record_video", "record_training", "plot_train", "plot_from_file", "all_plots")
@@ -299,6 +304,24 @@ def _distill(argv: list[str], prog: str) -> None:
     print(f"Quality: {planner_quality(planner.metadata)}")
 
 
+def _checkpointing_manager(argv: list[str]) -> type[PilotExperimentManager]:
+    """
+    The manager of ``train``, with this entry's ``--checkpoint-freq N`` and ``--resume`` (taken out of ``argv``, in
+    place: the zoo's parser knows neither).
+
+    :raise SystemExit: for a negative frequency, or ``--resume`` without one
+    """
+    parser = argparse.ArgumentParser(add_help=False)
+    parser.add_argument("--checkpoint-freq", type=int, default=0)
+    parser.add_argument("--resume", action="store_true")
+    args, rest = parser.parse_known_args(argv)
+    argv[:] = rest
+    try:
+        return PilotExperimentManager.configured(args.checkpoint_freq, args.resume)
+    except ValueError as error:
+        raise SystemExit(str(error)) from error
+
+
 def main(argv: list[str] | None = None) -> None:
     """Run ``python -m sb3_pilot.experiments.zoo COMMAND [zoo flags]`` (``argv`` defaults to ``sys.argv[1:]``)."""
     argv = sys.argv[1:] if argv is None else list(argv)
@@ -313,8 +336,9 @@ def main(argv: list[str] | None = None) -> None:
     elif command == "train":
         from rl_zoo3.train import train
 
+        manager = _checkpointing_manager(zoo_argv)
         sys.argv = [prog, *_with_conf_file(zoo_argv)]
-        with zoo_train_with():  # the zoo's train, building sb3_pilot's ExperimentManager (see zoo_shim)
+        with zoo_train_with(manager):  # the zoo's train, building sb3_pilot's ExperimentManager (see zoo_shim)
             train()
     elif command == "enjoy":
         from rl_zoo3.enjoy import enjoy

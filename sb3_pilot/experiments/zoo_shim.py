@@ -25,8 +25,11 @@ from pathlib import Path
 from typing import Any
 
 from rl_zoo3.exp_manager import ExperimentManager
+from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
+from stable_baselines3.common.utils import get_latest_run_id
 
+from sb3_pilot.common.checkpoint import CHECKPOINT_FILE, CheckpointEvery, RestoreCounters, load_checkpoint, save_checkpoint
 from sb3_pilot.experiments.evaluation import GoalEvalCallback
 
 #: The rl_zoo3 versions whose internals this module was checked against.
@@ -57,6 +60,11 @@ def _train_problems() -> list[str]:
         problems.append("ExperimentManager.read_hyperparameters takes other arguments than self")
     if list(inspect.signature(ExperimentManager.create_callbacks).parameters) != ["self"]:
         problems.append("ExperimentManager.create_callbacks takes other arguments than self")
+    for name in ("setup_experiment", "save_trained_model"):
+        if name not in _source(rl_zoo3.train.train):
+            problems.append(f"rl_zoo3.train.train no longer calls ExperimentManager.{name}")
+    if 'self.params_path = f"{self.save_path}/{self.env_name}"' not in _source(ExperimentManager.__init__):
+        problems.append("ExperimentManager.__init__ no longer derives params_path from save_path")
     for name, sb3_class in (("CheckpointCallback", CheckpointCallback), ("EvalCallback", EvalCallback)):
         if getattr(rl_zoo3.exp_manager, name, None) is not sb3_class or f"{name}(" not in _source(
             ExperimentManager.create_callbacks
@@ -106,7 +114,101 @@ class PilotExperimentManager(ExperimentManager):
     - the evaluation env gets the YAML entry's ``env_kwargs`` as the training env does: the zoo gives it the command
       line's ``--env-kwargs`` only, so a recipe whose task options are in its YAML (``cpu/ant_controller_upright.yml``:
       500-step episodes, moving goals) was evaluated on the default task. ``--eval-env-kwargs`` still wins.
+
+    Made by :meth:`configured` (``train --checkpoint-freq N [--resume]``), it also keeps a resumable checkpoint of an
+    off-policy run (:mod:`sb3_pilot.common.checkpoint`: model, optimizers, replay buffer with its frames compressed,
+    random generators) in ``<run folder>/checkpoint/``, every ``checkpoint_freq`` env steps and when training ends or
+    is interrupted (Ctrl-C, SIGINT); with ``resume``, it continues the latest run of the task in the log folder from
+    its checkpoint, in that folder: same counters, its ``evaluations.npz`` going on from the checkpoint's step. A
+    folder without a checkpoint, or a checkpoint of other settings (algorithm, task, seed, hyperparameters, env kwargs;
+    ``n_timesteps`` aside, so that a resumed run may go further), is refused before training, naming the problem.
     """
+
+    #: env steps between two checkpoints (0: none)
+    checkpoint_freq: int = 0
+    #: whether to continue the latest run from its checkpoint
+    resume: bool = False
+    #: the folder of the run's checkpoint, in its run folder
+    CHECKPOINT_FOLDER = "checkpoint"
+
+    @classmethod
+    def configured(cls, checkpoint_freq: int = 0, resume: bool = False) -> type[PilotExperimentManager]:
+        """
+        :param checkpoint_freq: env steps between two checkpoints (0: none; then ``resume`` cannot be set)
+        :param resume: continue the latest run from its checkpoint
+        :return: the manager class that checkpoints (and resumes) so
+        :raise ValueError: for a negative frequency, or ``resume`` without checkpoints
+        """
+        if checkpoint_freq < 0:
+            raise ValueError(f"--checkpoint-freq must be >= 0 (0: no checkpoint), got {checkpoint_freq}.")
+        if resume and not checkpoint_freq:
+            raise ValueError("--resume continues a run from its checkpoints: give the --checkpoint-freq it was trained with.")
+        return type(cls.__name__, (cls,), {"checkpoint_freq": checkpoint_freq, "resume": resume})
+
+    def __init__(self, *args: Any, **kwargs: Any):
+        super().__init__(*args, **kwargs)
+        self._checkpoint_settings: dict[str, Any] = {}
+        if not self.resume:
+            return
+        if self.continue_training:
+            raise SystemExit("--resume continues the latest run from its checkpoint; -i/--trained-agent starts another.")
+        run_id = get_latest_run_id(self.log_path, self.env_name)
+        folder = Path(self.log_path, f"{self.env_name}_{run_id}")
+        if run_id == 0 or not (folder / self.CHECKPOINT_FOLDER / CHECKPOINT_FILE).is_file():
+            where = f"{folder / self.CHECKPOINT_FOLDER}" if run_id else f"{self.log_path} (no run of {self.env_name})"
+            raise SystemExit(
+                f"--resume: no checkpoint in {where}; a run checkpoints with --checkpoint-freq N. Drop --resume to start "
+                "a new run."
+            )
+        self.save_path = str(folder)
+        self.params_path = f"{self.save_path}/{self.env_name}"
+
+    @property
+    def checkpoint_folder(self) -> Path:
+        """Where the run's checkpoint is kept."""
+        return Path(self.save_path, self.CHECKPOINT_FOLDER)
+
+    def setup_experiment(self) -> tuple[BaseAlgorithm, dict[str, Any]] | None:
+        results = super().setup_experiment()
+        if results is None or not self.checkpoint_freq:
+            return results
+        model, saved_hyperparams = results
+        self._checkpoint_settings = {
+            "algo": self.algo,
+            "env": self.env_name.gym_id,
+            "seed": self.seed,
+            "env_kwargs": self.env_kwargs,
+            "hyperparams": {key: value for key, value in saved_hyperparams.items() if key != "n_timesteps"},
+        }
+        if self.resume:
+            from rl_zoo3 import ALGOS
+
+            try:
+                model = load_checkpoint(
+                    self.checkpoint_folder,
+                    ALGOS[self.algo],
+                    model.get_env(),  # type: ignore[arg-type]
+                    self._checkpoint_settings,
+                    device=self.device,
+                    verbose=self.verbose,
+                    tensorboard_log=self.tensorboard_log,
+                )
+            except (FileNotFoundError, ValueError) as error:
+                raise SystemExit(f"--resume: {error}") from error
+            print(f"Resuming {self.save_path} at {model.num_timesteps} env steps (of {self.n_timesteps})")
+            for callback in self.callbacks:
+                if isinstance(callback, GoalEvalCallback):
+                    callback.restore_history(model.num_timesteps)
+            self.callbacks.insert(0, RestoreCounters(model, self.callbacks))  # type: ignore[arg-type]
+        save_freq = max(self.checkpoint_freq // self.n_envs, 1)
+        self.callbacks.append(CheckpointEvery(save_freq, self.checkpoint_folder, self._checkpoint_settings))
+        return model, saved_hyperparams
+
+    def save_trained_model(self, model: BaseAlgorithm) -> None:
+        super().save_trained_model(model)
+        if self.checkpoint_freq:  # the last checkpoint, at the end or where training was interrupted
+            save_checkpoint(model, self.checkpoint_folder, self._checkpoint_settings)  # type: ignore[arg-type]
+            print(f"Checkpoint at {model.num_timesteps} env steps in {self.checkpoint_folder}")
 
     def read_hyperparameters(self) -> tuple[dict[str, Any], dict[str, Any]]:
         hyperparams, saved_hyperparams = super().read_hyperparameters()
