@@ -150,3 +150,79 @@ def test_pointmaze_to_antmaze_smoke(tmp_path: Path) -> None:
     unguided = json.loads((models / "unguided" / "guidance.json").read_text())
     assert len(unguided["successes"]) == 2 and "landmarks" not in unguided["episodes"][0]
     assert len(json.loads((models / "open_ground" / "guidance.json").read_text())["successes"]) == 2
+
+
+def _ant_tasks(challenge_name: str, variant: str | None) -> dict[str, str | None]:
+    """The Ant (``ant_of``) of every task a challenge's stages build: the controller's training task (its zoo
+    ``--env-kwargs``, else its YAML entry's) and each evaluation's."""
+    import yaml
+
+    from sb3_pilot.envs.locomotion import ant_of
+    from sb3_pilot.experiments.challenges import CHALLENGES, ControllerEvaluation, ZooTrain, challenge_variant
+    from sb3_pilot.experiments.zoo import hyperparams_dir
+
+    challenge = CHALLENGES[challenge_name] if variant is None else challenge_variant(challenge_name, variant)
+    ants = {}
+    for stage in challenge.stages:
+        if isinstance(stage, ZooTrain) and stage.env_id.startswith("AntMaze"):
+            entry = yaml.safe_load((hyperparams_dir() / "cpu" / stage.conf_file).read_text())[stage.env_id]
+            env = gym.make(stage.env_id, **(stage.env_kwargs or entry["env_kwargs"]))
+        elif isinstance(stage, ControllerEvaluation):
+            env = gym.make(stage.env_id, **stage.env_kwargs)
+        else:
+            continue
+        ants[stage.name] = ant_of(env)
+        env.close()
+    return ants
+
+
+def test_hrl_variant_is_the_literatures_ant_in_every_task() -> None:
+    """``pointmaze-to-antmaze --variant hrl`` trains and evaluates the literature's Ant in gymnasium-robotics' own
+    tasks (their ``xml_file``); the challenge itself keeps gymnasium's; the teacher and its planner are the same."""
+    from sb3_pilot.experiments.challenges import CHALLENGES, challenge_variant
+
+    names = ["controller", "pilot", "unguided", "open_ground"]
+    assert _ant_tasks("pointmaze-to-antmaze", "hrl") == dict.fromkeys(names, "hrl")
+    assert _ant_tasks("pointmaze-to-antmaze", None) == dict.fromkeys(names, "gymnasium")
+    variant, challenge = challenge_variant("pointmaze-to-antmaze", "hrl"), CHALLENGES["pointmaze-to-antmaze"]
+    assert variant.name == "pointmaze-to-antmaze-hrl" and variant.target_env == challenge.target_env
+    assert variant.stages[:2] == challenge.stages[:2]  # teacher, distill
+    pilot = next(stage for stage in variant.stages if stage.name == "pilot")
+    assert (pilot.lead, pilot.max_horizon, pilot.goal_scale) == (2.75, 100, 4.0)
+
+
+def test_unknown_variant_refused_with_the_list(capsys: pytest.CaptureFixture[str]) -> None:
+    from sb3_pilot.experiments.challenges.__main__ import main
+
+    with pytest.raises(SystemExit):
+        main(["pointmaze-to-antmaze", "--variant", "d4rl", "--dry-run"])
+    assert "no variant 'd4rl'; the variants: pointmaze-to-antmaze --variant hrl" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["maze-car", "--variant", "hrl", "--dry-run"])
+    assert "maze-car has no variant 'hrl'" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["pointmaze-to-antmaze", "--variant", "hrl", "--reuse-shipped", "--dry-run"])
+    assert "not with 'all' nor --reuse-shipped" in capsys.readouterr().err
+
+
+def test_gymnasiums_ant_controller_refused_on_the_literatures_umaze(tmp_path: Path) -> None:
+    """A controller whose zoo settings say it trained on AntMaze_Open-v5 with gymnasium's Ant is refused, by name, on
+    AntMaze_UMaze-v5 with the literature's (and the reverse); its own Ant is accepted."""
+    import yaml
+
+    from sb3_pilot.envs.locomotion import ANT_XML_FILES
+    from sb3_pilot.experiments.challenges.controller import check_controller_ant
+
+    for trained, guided in (("gymnasium", "hrl"), ("hrl", "gymnasium")):
+        model = tmp_path / trained / "AntMaze_Open-v5.zip"
+        (model.parent / model.stem).mkdir(parents=True)
+        env_kwargs = {**OPEN, **({"xml_file": ANT_XML_FILES["hrl"]} if trained == "hrl" else {})}
+        (model.parent / model.stem / "args.yml").write_text(
+            yaml.safe_dump({"env": "AntMaze_Open-v5", "env_kwargs": env_kwargs})
+        )
+        maze = gym.make("AntMaze_UMaze-v5", **OPEN, **({"xml_file": ANT_XML_FILES["hrl"]} if guided == "hrl" else {}))
+        with pytest.raises(ValueError, match=f"trained on '{trained}'.*simulates '{guided}'"):
+            check_controller_ant(model, maze)
+        own = gym.make("AntMaze_UMaze-v5", **env_kwargs)
+        check_controller_ant(model, own)
+        maze.close(), own.close()

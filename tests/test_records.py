@@ -14,7 +14,7 @@ import yaml
 from benchmarks.sources import SOURCE_TASKS, source_challenge
 from sb3_pilot.experiments.challenges import CHALLENGES, run_challenge
 from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
-from sb3_pilot.experiments.challenges.definitions import BUDGETS, REUSE_SHIPPED, Challenge
+from sb3_pilot.experiments.challenges.definitions import BUDGETS, REUSE_SHIPPED, VARIANTS, Challenge
 from sb3_pilot.experiments.challenges.migrate import main as migrate_main
 from sb3_pilot.experiments.challenges.records import RecordMismatch, config_differences, migrate_folder
 from sb3_pilot.experiments.challenges.runner import SUMMARY, context_kwargs, stage_tasks
@@ -59,6 +59,10 @@ def _challenge(record: dict[str, Any]) -> tuple[Challenge, list[str]] | None:
     shipped = {challenge.name: base for base, challenge in REUSE_SHIPPED.items()}
     if name in shipped:
         return REUSE_SHIPPED[shipped[name]], [shipped[name], "--reuse-shipped"]
+    variants = {challenge.name: (base, variant) for base, named in VARIANTS.items() for variant, challenge in named.items()}
+    if name in variants:
+        base, variant = variants[name]
+        return VARIANTS[base][variant], [base, "--variant", variant]
     return (SOURCES[name], []) if name in SOURCES else None
 
 

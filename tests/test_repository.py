@@ -169,10 +169,10 @@ def test_guided_video_without_the_shipped_files(tmp_path: Path, capsys: pytest.C
     """The video of the shipped guided Ant refuses to start, naming the clone, when the shipped files are not there."""
     stages = tuple(
         dataclasses.replace(stage, path=tmp_path / stage.path.name) if isinstance(stage, Shipped) else stage
-        for stage in guided_video.CHALLENGE.stages
+        for stage in guided_video.CHALLENGES["v1"].stages
     )
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(guided_video, "CHALLENGE", dataclasses.replace(guided_video.CHALLENGE, stages=stages))
+        patch.setitem(guided_video.CHALLENGES, "v1", dataclasses.replace(guided_video.CHALLENGES["v1"], stages=stages))
         with pytest.raises(SystemExit):
             guided_video.main(["--output", str(tmp_path / "video.gif")])
     assert "clone of the repository" in capsys.readouterr().err

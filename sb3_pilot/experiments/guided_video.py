@@ -1,10 +1,12 @@
 """
 A GIF of the guided Ant in Ant-Maze: the shipped open-ground controller, zero-shot, following the landmarks of the
-shipped Maze2D goal planner round the U's wall (``--reuse-shipped``'s models, horizon and switch rule).
+shipped Maze2D goal planner round the U's wall (``--reuse-shipped``'s models, horizon and switch rule), on the
+literature's Ant (``Pilot/AntMaze-v1``, the default) or on gymnasium's (``--ant v0``).
 
-    python -m sb3_pilot.experiments.guided_video --output docs/_static/antmaze_guided.gif
+    python -m sb3_pilot.experiments.guided_video --output docs/_static/antmaze_v1_guided.gif
+    python -m sb3_pilot.experiments.guided_video --ant v0 --output docs/_static/antmaze_guided.gif
 
-The episode is the first that succeeds among the ``zero-shot-ant-maze-shipped`` challenge's evaluation episodes,
+The episode is the first that succeeds among the ``zero-shot-ant-maze(-v1)-shipped`` challenge's evaluation episodes,
 taken in their order (seed ``s``, episode ``i`` reset with seed ``10_000 s + i``); the command prints which one and
 the outcome of those before it. The episodes are played without rendering to find it, then that one is played again,
 rendered (top-down, fixed camera): the landmark the controller is shown is the green sphere, the real goal the red
@@ -28,20 +30,25 @@ from sb3_pilot.experiments.challenges.controller import ControllerEvaluation
 from sb3_pilot.experiments.challenges.definitions import REUSE_SHIPPED
 from sb3_pilot.experiments.challenges.stages import Shipped, ShippedFileMissing, shipped_file
 from sb3_pilot.experiments.zoo_run import load_zoo_model
-from sb3_pilot.transfer import LandmarkGuidance
+from sb3_pilot.transfer import LandmarkGuidance, horizon_for_lead
 
-#: The challenge whose shipped models, horizon and switch rule the video shows.
-CHALLENGE = REUSE_SHIPPED["zero-shot-ant-maze"]
+#: The challenges whose shipped models, horizon and switch rule the video shows, by the version of the Ant's tasks.
+CHALLENGES = {"v0": REUSE_SHIPPED["zero-shot-ant-maze"], "v1": REUSE_SHIPPED["zero-shot-ant-maze-v1"]}
 LANDMARK_RGBA = np.array([0.1, 0.85, 0.1, 1.0])
 PATH_RGBA = np.array([0.15, 0.35, 1.0, 1.0])
 #: Top-down view of the whole U-maze (5 x 5 cells of 4 units, centred on the origin).
 CAMERA = {"lookat": (0.0, 0.0, 0.0), "distance": 17.0, "elevation": -90.0, "azimuth": 90.0}
 
 
-def shipped_guidance() -> tuple[Path, Path, ControllerEvaluation]:
-    """The shipped controller's and planner's paths and the challenge's guidance stage (horizon, switch rule)."""
-    shipped = {stage.name: stage.path for stage in CHALLENGE.stages if isinstance(stage, Shipped)}
-    (guidance,) = (stage for stage in CHALLENGE.stages if isinstance(stage, ControllerEvaluation) and stage.planner)
+def shipped_guidance(ant: str) -> tuple[Path, Path, ControllerEvaluation]:
+    """
+    The shipped controller's and planner's paths and the challenge's guidance stage (horizon, switch rule).
+
+    :param ant: the version of the Ant's tasks, a key of :data:`CHALLENGES`
+    """
+    challenge = CHALLENGES[ant]
+    shipped = {stage.name: stage.path for stage in challenge.stages if isinstance(stage, Shipped)}
+    (guidance,) = (stage for stage in challenge.stages if isinstance(stage, ControllerEvaluation) and stage.planner)
     assert guidance.planner is not None
     return shipped[guidance.controller], shipped[guidance.planner], guidance
 
@@ -49,7 +56,7 @@ def shipped_guidance() -> tuple[Path, Path, ControllerEvaluation]:
 def guided_env(
     planner: GoalPlanner, guidance: ControllerEvaluation, max_steps: int | None, render_size: int | None
 ) -> LandmarkGuidance:
-    """``Pilot/AntMaze-v0`` guided as the challenge's stage does, rendered top-down if ``render_size`` is given."""
+    """``Pilot/AntMaze-v0`` (``-v1``) guided as the challenge's stage does, rendered top-down if ``render_size`` is given."""
     task = gym.make(
         guidance.env_id,
         **({"max_episode_steps": max_steps} if max_steps else {}),
@@ -63,7 +70,10 @@ def guided_env(
         camera.type = mujoco.mjtCamera.mjCAMERA_FREE
         camera.lookat[:] = CAMERA["lookat"]
         camera.distance, camera.elevation, camera.azimuth = CAMERA["distance"], CAMERA["elevation"], CAMERA["azimuth"]
-    return LandmarkGuidance(task, planner, horizon=guidance.horizon, switch_distance=guidance.switch_distance)
+    horizon = guidance.horizon
+    if guidance.lead is not None:  # as the stage chooses it: on the task's own start and goal pairs
+        horizon = horizon_for_lead(task, planner, guidance.lead, max_horizon=guidance.max_horizon)
+    return LandmarkGuidance(task, planner, horizon=horizon, switch_distance=guidance.switch_distance)
 
 
 def frame(env: LandmarkGuidance, path: list[np.ndarray]) -> np.ndarray:
@@ -114,9 +124,11 @@ def save_gif(frames: list[np.ndarray], output: Path, fps: int) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     """Find the first successful evaluation episode of the shipped guided Ant and write it as a GIF."""
-    controller_path, planner_path, guidance = shipped_guidance()
     parser = argparse.ArgumentParser(prog="python -m sb3_pilot.experiments.guided_video", description=__doc__)
-    parser.add_argument("--output", type=Path, default=Path("docs/_static/antmaze_guided.gif"))
+    parser.add_argument(
+        "--ant", choices=list(CHALLENGES), default="v1", help="v1: the literature's Ant (Pilot/AntMaze-v1); v0: gymnasium's"
+    )
+    parser.add_argument("--output", type=Path, default=Path("docs/_static/antmaze_v1_guided.gif"))
     parser.add_argument("--seeds", type=int, default=3, help="evaluation seeds whose episodes are searched (0 .. N-1)")
     parser.add_argument("--episodes", type=int, default=10, help="episodes per seed (the challenge's cpu budget: 10)")
     parser.add_argument("--size", type=int, default=224, help="frame width and height in pixels")
@@ -125,6 +137,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--max-steps", type=int, default=None, help="shorter episodes (a quick check of the command)")
     parser.add_argument("--any", action="store_true", help="draw the first episode whether or not it succeeds")
     args = parser.parse_args(argv)
+    controller_path, planner_path, guidance = shipped_guidance(args.ant)
     try:
         for path in (controller_path, planner_path):
             shipped_file(path)
@@ -135,9 +148,8 @@ def main(argv: list[str] | None = None) -> None:
     model, vec_normalize = load_zoo_model(controller_path, algo=guidance.controller_algo)
     assert vec_normalize is None, "the shipped controller reads raw observations"
     planner = GoalPlanner.load(planner_path)
-    print(f"controller {controller_path.name}, planner {planner_path.name}, k={guidance.horizon}", flush=True)
-
     search = guided_env(planner, guidance, args.max_steps, None)
+    print(f"controller {controller_path.name}, planner {planner_path.name}, k={search.horizon}", flush=True)
     tried = []
     for seed in range(args.seeds):
         for episode in range(args.episodes):

@@ -8,7 +8,15 @@ process of its own, up to ``--jobs N`` at once on this machine or as Ray tasks (
 
 from sb3_pilot.experiments.challenges.backends import StageFailed
 from sb3_pilot.experiments.challenges.controller import ChooseCheckpoint, ControllerEvaluation
-from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, REUSE_SHIPPED, Challenge, only_stages
+from sb3_pilot.experiments.challenges.definitions import (
+    BUDGETS,
+    CHALLENGES,
+    REUSE_SHIPPED,
+    VARIANTS,
+    Challenge,
+    challenge_variant,
+    only_stages,
+)
 from sb3_pilot.experiments.challenges.runner import format_table, run_challenge, stage_graph, steps_to
 from sb3_pilot.experiments.challenges.stages import Budget, Distill, Shipped, ZooTrain
 
@@ -16,6 +24,7 @@ __all__ = [
     "BUDGETS",
     "CHALLENGES",
     "REUSE_SHIPPED",
+    "VARIANTS",
     "Budget",
     "Challenge",
     "ChooseCheckpoint",
@@ -24,6 +33,7 @@ __all__ = [
     "Shipped",
     "StageFailed",
     "ZooTrain",
+    "challenge_variant",
     "format_table",
     "only_stages",
     "run_challenge",

@@ -1,7 +1,7 @@
 """
 ``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N|A-B|A,B,...
 [--root runs] [--plot] [--jobs N | --backend ray [--ray-address ADDR]] [--threads T] [--keep-going]
-[--reuse-shipped] [--stages NAME ...] [--no-progress] [--dry-run]``.
+[--reuse-shipped | --variant NAME] [--stages NAME ...] [--no-progress] [--dry-run]``.
 
 ``--seeds 6`` runs seeds 0 .. 5; ``--seeds 3-5`` or ``--seeds 3,4,5`` those seeds alone (the others' records stay in
 ``summary.json``, and a later ``--seeds 6`` summarizes them all).
@@ -17,7 +17,14 @@ import signal
 import sys
 
 from sb3_pilot.experiments.challenges.backends import BACKENDS, StageFailed
-from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, REUSE_SHIPPED, only_stages
+from sb3_pilot.experiments.challenges.definitions import (
+    BUDGETS,
+    CHALLENGES,
+    REUSE_SHIPPED,
+    VARIANTS,
+    challenge_variant,
+    only_stages,
+)
 from sb3_pilot.experiments.challenges.runner import run_challenge
 from sb3_pilot.experiments.challenges.stages import ShippedFileMissing
 
@@ -106,6 +113,12 @@ def main(argv: list[str] | None = None) -> None:
         "writes ROOT/CHALLENGE-shipped/",
     )
     parser.add_argument(
+        "--variant",
+        default=None,
+        help="run a named variant of the challenge instead (writes ROOT/CHALLENGE-VARIANT/): "
+        + ", ".join(f"{name} --variant {variant}" for name, variants in VARIANTS.items() for variant in variants),
+    )
+    parser.add_argument(
         "--stages",
         nargs="+",
         default=None,
@@ -121,7 +134,15 @@ def main(argv: list[str] | None = None) -> None:
     names = list(CHALLENGES) if args.challenge == "all" else [args.challenge]
     if args.reuse_shipped and any(name not in REUSE_SHIPPED for name in names):
         parser.error(f"--reuse-shipped: shipped models exist for {', '.join(REUSE_SHIPPED)} only")
-    challenges = [REUSE_SHIPPED[name] if args.reuse_shipped else CHALLENGES[name] for name in names]
+    if args.variant is not None:
+        if args.reuse_shipped or args.challenge == "all":
+            parser.error("--variant names one challenge's variant: not with 'all' nor --reuse-shipped")
+        try:
+            challenges = [challenge_variant(args.challenge, args.variant)]
+        except ValueError as error:
+            parser.error(str(error))
+    else:
+        challenges = [REUSE_SHIPPED[name] if args.reuse_shipped else CHALLENGES[name] for name in names]
     if args.stages is not None:
         try:
             challenges = [only_stages(challenge, args.stages) for challenge in challenges]

@@ -106,6 +106,7 @@ class ControllerEvaluation:
     :param controller_algo: the zoo algorithm of the controller (None: from its zoo run folder)
     :param compared_with: the stage whose method this one is compared with in the statistics (e.g. the same
         controller unguided); None: SAC+HER, where the challenge has it. Not part of the stage's configuration
+    :param max_horizon: with ``lead``, the largest ``k`` considered (a planner of small steps needs more than 10)
     """
 
     name: str
@@ -121,8 +122,10 @@ class ControllerEvaluation:
     controller_algo: str | None = None
     compared_with: str | None = None
     lead: float | None = None
+    max_horizon: int = 10
 
     def __post_init__(self) -> None:
+        check_number(f"{self.name}: max_horizon", self.max_horizon, minimum=1, integer=True)
         if self.lead is not None:
             check_number(f"{self.name}: lead", self.lead, minimum=0, strict=True)
             if self.planner is None:
@@ -167,7 +170,13 @@ class ControllerEvaluation:
             "episodes": self.n_episodes(ctx),
             "max_episode_steps": ctx.steps.get(self.name),
             "seed": ctx.seed,
-        } | ({} if self.lead is None else {"lead": self.lead})  # only then: the other stages' hashes stay
+        } | self._lead_config()
+
+    def _lead_config(self) -> dict[str, Any]:
+        """The lead and its largest ``k`` in the configuration only where set: the other stages' hashes stay."""
+        if self.lead is None:
+            return {}
+        return {"lead": self.lead} | ({} if self.max_horizon == 10 else {"max_horizon": self.max_horizon})
 
     def describe(self, ctx: StageContext, stage_dir: Path) -> str:
         horizon = f"k={self.horizon}" if self.lead is None else f"k for a lead of {self.lead}"
@@ -183,7 +192,9 @@ class ControllerEvaluation:
         planner = GoalPlanner.load(ctx.outputs[self.planner])
         if self.goal_scale is not None:
             share_goal_space(str(planner.source_task), self.env_id, goal_map=GoalMap(self.goal_scale))
-        horizon = self.horizon if self.lead is None else horizon_for_lead(task, planner, self.lead)
+        horizon = self.horizon
+        if self.lead is not None:
+            horizon = horizon_for_lead(task, planner, self.lead, max_horizon=self.max_horizon)
         return LandmarkGuidance(task, planner, horizon=horizon, switch_distance=self.switch_distance)
 
     def run(self, ctx: StageContext, stage_dir: Path) -> None:

@@ -42,6 +42,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+from sb3_pilot.envs.locomotion import ANT_XML_FILES
 from sb3_pilot.envs.maze import WallMarginWrapper
 from sb3_pilot.experiments.challenges.controller import ChooseCheckpoint, ControllerEvaluation, far_umaze_map
 from sb3_pilot.experiments.challenges.stages import (
@@ -298,22 +299,28 @@ HIGH_DIM_ACTION_STEPS = {
 }
 
 
-def _umaze_evaluations(controller: str, controller_algo: str | None = None) -> tuple[ControllerEvaluation, ...]:
+def _umaze_evaluations(
+    controller: str, controller_algo: str | None = None, ant: dict[str, Any] | None = None, **guidance: Any
+) -> tuple[ControllerEvaluation, ...]:
     """
     ``pointmaze-to-antmaze``'s evaluations of an Ant controller stage: on ``AntMaze_UMaze-v5`` from the far start to
     the far goal guided by the PointMaze planner (stage ``distill``) and unguided, and on its own open arena.
 
     :param controller: the controller's stage
     :param controller_algo: its zoo algorithm (None: from its zoo run folder)
+    :param ant: options of the three tasks that choose the Ant (``{"xml_file": ...}``; None: gymnasium-robotics')
+    :param guidance: the guided evaluation's ``horizon`` or ``lead`` (:class:`ControllerEvaluation`'s; none: k = 12)
     """
+    ant = ant or {}
     # the far start and goal; success: gymnasium-robotics' (within 0.45), the episode ending there; the controller's
     # inputs, without contact forces
-    far = {"maze_map": far_umaze_map(), "continuing_task": False, "include_cfrc_ext_in_observation": False}
+    far = {"maze_map": far_umaze_map(), "continuing_task": False, "include_cfrc_ext_in_observation": False, **ant}
+    # an AntMaze goal is 4 times the PointMaze goal of the same place. k = 12: the lead Zero-shot
+    # Ant-Maze's k = 2-3 give its Maze2D planner, 1.1-1.75 Ant units from the far start, where this
+    # challenge's seed-0 planner plans 0.10 a step (k = 3: 0.31; k = 12: 1.23; python -m
+    # benchmarks.landmark_lead); the switch rule is Zero-shot Ant-Maze's
+    guidance = guidance or {"horizon": 12}
     return (
-        # an AntMaze goal is 4 times the PointMaze goal of the same place. k = 12: the lead Zero-shot
-        # Ant-Maze's k = 2-3 give its Maze2D planner, 1.1-1.75 Ant units from the far start, where this
-        # challenge's seed-0 planner plans 0.10 a step (k = 3: 0.31; k = 12: 1.23; python -m
-        # benchmarks.landmark_lead); the switch rule is Zero-shot Ant-Maze's
         ControllerEvaluation(
             "pilot",
             controller,
@@ -322,10 +329,10 @@ def _umaze_evaluations(controller: str, controller_algo: str | None = None) -> t
             planner="distill",
             env_kwargs=far,
             goal_scale=4.0,
-            horizon=12,
             episodes=30,
             controller_algo=controller_algo,
             compared_with="unguided",
+            **guidance,
         ),
         ControllerEvaluation(
             "unguided",
@@ -342,11 +349,48 @@ def _umaze_evaluations(controller: str, controller_algo: str | None = None) -> t
             controller,
             "AntMaze_Open-v5",
             None,
-            env_kwargs={"continuing_task": False, "include_cfrc_ext_in_observation": False},
+            env_kwargs={"continuing_task": False, "include_cfrc_ext_in_observation": False, **ant},
             episodes=30,
             controller_algo=controller_algo,
         ),
     )
+
+
+def _pointmaze_to_antmaze_stages(checkpoints: int, ant: dict[str, Any] | None = None, **guidance: Any) -> tuple[Stage, ...]:
+    """
+    ``pointmaze-to-antmaze``'s stages: the PointMaze teacher and its planner, the open-arena Ant controller, its
+    checkpoint chosen on open ground, and :func:`_umaze_evaluations`.
+
+    :param checkpoints: checkpoints the controller keeps (:class:`ZooTrain`'s)
+    :param ant: options of the Ant's tasks that choose the Ant (``{"xml_file": ...}``; None: gymnasium-robotics'), for
+        training and evaluation alike
+    :param guidance: the guided evaluation's ``horizon`` or ``lead``
+    """
+    # the zoo's --env-kwargs replace the YAML entry's: its own, then the Ant
+    controller_kwargs = {"max_episode_steps": 500, "include_cfrc_ext_in_observation": False, **ant} if ant else {}
+    return (
+        # gymnasium-robotics' own tasks under their own IDs: the teacher with sac.yml's PointMaze entry
+        ZooTrain("teacher", "sac", "PointMaze_UMaze-v3", "sac.yml"),
+        Distill("distill", "teacher"),
+        # the open-ground controller's recipe (cpu/ant_controller_upright.yml's) through wrappers, ``checkpoints``
+        # checkpoints evenly spaced
+        ZooTrain(
+            "controller",
+            "sac",
+            "AntMaze_Open-v5",
+            "antmaze_open_controller.yml",
+            env_kwargs=controller_kwargs,
+            checkpoints=checkpoints,
+        ),
+        # the checkpoint the stages below evaluate: chosen on held-out episodes of its own open-arena task (no
+        # U-maze episode), by success, ties by mean final distance
+        ChooseCheckpoint("chosen", "controller", episodes=30),
+        *_umaze_evaluations("chosen", ant=ant, **guidance),
+    )
+
+
+#: The smoke budget of ``pointmaze-to-antmaze`` and its variants
+_UMAZE_SMOKE = {"teacher": 600, "controller": 500, "chosen": 50, "pilot": 50, "unguided": 50, "open_ground": 50}
 
 
 CHALLENGES: dict[str, Challenge] = {
@@ -488,20 +532,10 @@ CHALLENGES: dict[str, Challenge] = {
             "controller of the open arena AntMaze_Open-v5 on AntMaze_UMaze-v5, far start to far goal (0 U-maze steps), "
             "vs the same controller unguided",
             "AntMaze_UMaze-v5",
-            (
-                # gymnasium-robotics' own tasks under their own IDs: the teacher with sac.yml's PointMaze entry
-                ZooTrain("teacher", "sac", "PointMaze_UMaze-v3", "sac.yml"),
-                Distill("distill", "teacher"),
-                # the open-ground controller's recipe (cpu/ant_controller_upright.yml's) through wrappers, a checkpoint
-                # kept every seventh of its steps (every 50k at the cpu budget)
-                ZooTrain("controller", "sac", "AntMaze_Open-v5", "antmaze_open_controller.yml", checkpoints=7),
-                # the checkpoint the stages below evaluate: chosen on held-out episodes of its own open-arena task (no
-                # U-maze episode), by success, ties by mean final distance
-                ChooseCheckpoint("chosen", "controller", episodes=30),
-                *_umaze_evaluations("chosen"),
-            ),
+            # a checkpoint kept every seventh of the controller's steps (every 50k at the cpu budget)
+            _pointmaze_to_antmaze_stages(checkpoints=7),
             steps={
-                "smoke": {"teacher": 600, "controller": 500, "chosen": 50, "pilot": 50, "unguided": 50, "open_ground": 50},
+                "smoke": _UMAZE_SMOKE,
                 # the teacher's is sac.yml's PointMaze budget: from the U's far start cell to its far goal cell,
                 # seed 0's teacher reached the goal in 0.15 of 20 episodes at 50k steps and 1.00 at 100k
                 # (python -m benchmarks.umaze_teacher; zoo_runs/pointmaze-to-antmaze). The controller's: the upright
@@ -567,6 +601,41 @@ CHALLENGES: dict[str, Challenge] = {
         ),
     )
 }
+
+#: ``--variant``: other settings of a challenge, each a challenge of its own (its folder ``<challenge>-<variant>``), by
+#: challenge and variant name.
+VARIANTS: dict[str, dict[str, Challenge]] = {
+    "pointmaze-to-antmaze": {
+        # the hierarchical-RL literature's Ant (Pilot/AntLocomotion-v1's) in gymnasium-robotics' own tasks, through
+        # their xml_file: the recipe, budget (200k) and lead (2.75 Ant units; k up to 100 for this planner's
+        # ~0.1-unit steps) of zero-shot-ant-maze-v1's controller, sized on that Ant (zoo_runs/ant-v1-controller),
+        # a checkpoint every 50k steps
+        "hrl": Challenge(
+            "pointmaze-to-antmaze-hrl",
+            "SAC+HER on PointMaze_UMaze-v3 -> goal planner from its steps, GoalMap(4.0) -> landmarks for a controller "
+            "of the literature's Ant (xml_file: sb3_pilot's ant_hrl.xml) on the open arena AntMaze_Open-v5, guided on "
+            "AntMaze_UMaze-v5 with that Ant, far start to far goal (0 U-maze steps), vs the same controller unguided",
+            "AntMaze_UMaze-v5",
+            _pointmaze_to_antmaze_stages(checkpoints=4, ant={"xml_file": ANT_XML_FILES["hrl"]}, lead=2.75, max_horizon=100),
+            steps={"smoke": _UMAZE_SMOKE, "cpu": {"teacher": 100_000, "controller": 200_000}},
+        ),
+    },
+}
+
+
+def challenge_variant(name: str, variant: str) -> Challenge:
+    """
+    :param name: a challenge's name
+    :param variant: one of its variants (:data:`VARIANTS`)
+    :return: the variant's challenge
+    :raise ValueError: naming the variants there are, for a challenge without ``variant``
+    """
+    variants = VARIANTS.get(name, {})
+    if variant not in variants:
+        known = ", ".join(f"{challenge} --variant {v}" for challenge, names in VARIANTS.items() for v in names)
+        raise ValueError(f"{name} has no variant {variant!r}; the variants: {known}")
+    return variants[variant]
+
 
 #: The controller and planners shipped for Zero-shot Ant-Maze (see the README there for how each was made).
 SHIPPED_DIR = REPO_DIR / "zoo_runs" / "zero-shot-ant-maze" / "controller"
