@@ -12,7 +12,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 from sb3_pilot import UDPO
 from sb3_pilot.common.saved_models import without_replay_buffer
 from sb3_pilot.distill import GoalPlanner, distill_goal_planner
-from sb3_pilot.distill.distill import rollout_pairs, teacher_goal_distribution
+from sb3_pilot.distill.distill import rollout_pairs, strided_labels, teacher_goal_distribution
 
 DISTILL_KWARGS = {"n_samples": 10_000, "gradient_steps": 1000, "net_arch": [64, 64]}
 
@@ -80,6 +80,49 @@ def test_rollout_labels_are_real_steps_of_the_teacher(point_teacher, rollout_pla
         np.testing.assert_allclose(labels[step], obs["achieved_goal"], atol=1e-6)  # also at the last step of an episode
         if terminated or truncated:
             obs, _ = env.reset()
+
+
+def test_strided_labels_stop_at_an_episode_end_or_a_new_target():
+    """A label is the goal ``stride`` steps later, or at the step that ends the episode or the target, if sooner."""
+    reached = np.arange(8, dtype=float).reshape(8, 1, 1)  # step t reached goal t (one env)
+    breaks = np.zeros((8, 1), dtype=bool)
+    breaks[4, 0] = True  # step 4 ends an episode (or its target goal changes after it)
+    labels = strided_labels(reached, breaks, stride=3)
+    assert labels[:, 0, 0].tolist() == [2, 3, 4, 4, 4, 7]  # 6 steps hold a whole window
+    np.testing.assert_array_equal(strided_labels(reached, breaks, stride=1), reached)
+
+
+def test_stride_labels_are_the_goal_reached_stride_steps_later(point_teacher):
+    env = PointGoalEnv()
+    stride, n_steps = 5, int(1.5 * env.max_episode_steps)
+    _, labels, *_ = rollout_pairs(point_teacher, Monitor(PointGoalEnv()), n_steps, seed=3, deterministic=True, stride=stride)
+    achieved, ends = [], []
+    obs, _ = env.reset(seed=3)
+    for _ in range(n_steps + stride):
+        action, _ = point_teacher.predict(obs, deterministic=True)
+        obs, _, terminated, truncated, _ = env.step(action)
+        achieved.append(obs["achieved_goal"])
+        ends.append(terminated or truncated)
+        if terminated or truncated:
+            obs, _ = env.reset()
+    assert len(labels) == n_steps
+    for step in range(n_steps):
+        window = [step + offset for offset in range(stride)]
+        last = next((index for index in window if ends[index]), window[-1])
+        np.testing.assert_allclose(labels[step], achieved[last], atol=1e-6)
+
+
+def test_a_planner_that_stays_put_is_warned_about(point_teacher, rollout_planner, recwarn):
+    """One gradient step learns nothing: the warning names the numbers and the remedy; a trained planner has none."""
+    with pytest.warns(UserWarning, match="nothing beyond staying put.*larger stride"):
+        distill_goal_planner(point_teacher, n_samples=2000, gradient_steps=1, env=Monitor(PointGoalEnv()))
+    strided = distill_goal_planner(point_teacher, **DISTILL_KWARGS, env=Monitor(PointGoalEnv()), stride=4)
+    assert strided.metadata["stride"] == 4 and "stride" not in rollout_planner.metadata
+    # a 4-step label is about 4 steps away (the teacher's step is the report's scale)
+    report, one_step = strided.metadata["holdout"], rollout_planner.metadata["holdout"]
+    assert 2.5 * one_step["teacher_step"] < report["teacher_step"] < 4.5 * one_step["teacher_step"]
+    assert report["landmark_distance"] < 0.7 * report["landmark_distance_untrained"]
+    assert not [warning for warning in recwarn if "staying put" in str(warning.message)]
 
 
 def test_distillation_is_deterministic_for_a_seed(point_teacher, point_planner, rollout_planner):
@@ -235,6 +278,10 @@ def test_distill_refusals(point_teacher, tmp_path):
     with pytest.raises(ValueError, match="env="):
         no_her = without_replay_buffer()  # a HER buffer needs an env to load
         distill_goal_planner(UDPO.load(tmp_path / "teacher", custom_objects=no_her), source_task="PointGoalEnv")
+    with pytest.raises(ValueError, match="stride"):
+        distill_goal_planner(point_teacher, stride=0)
+    with pytest.raises(ValueError, match="stride=2 labels the teacher's real steps"):
+        distill_goal_planner(point_teacher, stride=2, labels="planned")
     with pytest.raises(ValueError, match="labels must be one of"):
         distill_goal_planner(point_teacher, labels="real")
     with pytest.raises(ValueError, match="labels must be one of"):  # removed with UDPO's plan_target="policy"

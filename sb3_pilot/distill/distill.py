@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import sys
+import warnings
 from typing import NamedTuple
 
 import numpy as np
@@ -143,7 +144,7 @@ class Rollouts(NamedTuple):
     The teacher's steps (:func:`rollout_pairs`), in raw coordinates.
 
     :param observations: the observations ``s`` (with their ``desired_goal``, the target ``g_target``), batched
-    :param next_goals: the achieved goal ``phi(s_{t+1})`` each step reached
+    :param next_goals: the achieved goal ``phi(s_{t+1})`` each step reached (``phi(s_{t+stride})`` with a ``stride``)
     :param success: the success rate of the episodes that ended (NaN: none ended, or the env reports no success)
     :param goal_steps: the number of steps whose ``info`` reports the goal reached (None: the env reports no success)
     """
@@ -159,12 +160,37 @@ def _reported_success(info: dict) -> float:
     return float(info.get("is_success", info.get("success", np.nan)))
 
 
+def strided_labels(reached: np.ndarray, breaks: np.ndarray, stride: int) -> np.ndarray:
+    """
+    The goal each step's pair is labelled with: the goal reached ``stride`` steps later, or at the step that ends the
+    pair's episode or changes its target goal, if sooner.
+
+    :param reached: the goal each step reached, ``phi(s_{t+1})``, shape (steps, n_envs, goal_dim)
+    :param breaks: whether step ``t`` ends its episode or is the last one towards its target goal, shape (steps, n_envs)
+    :param stride: steps per label (1: the next goal, ``reached`` itself)
+    :return: labels of the first ``steps - stride + 1`` steps (those whose window the rollout holds), same layout
+    """
+    n_labels = len(reached) - stride + 1
+    labels, open_ = reached[:n_labels].copy(), ~breaks[:n_labels]
+    for offset in range(1, stride):
+        labels[open_] = reached[offset : offset + n_labels][open_]
+        open_ &= ~breaks[offset : offset + n_labels]
+    return labels
+
+
 def rollout_pairs(
-    model: BaseAlgorithm, env: GymEnv, n_samples: int, seed: int, deterministic: bool = False, noise: float = 0.0
+    model: BaseAlgorithm,
+    env: GymEnv,
+    n_samples: int,
+    seed: int,
+    deterministic: bool = False,
+    noise: float = 0.0,
+    stride: int = 1,
 ) -> Rollouts:
     """
     Run the teacher's policy ``pi(a | s, g_target)`` in ``env`` for ``n_samples`` steps and record, at every step, the
-    pair ``(g, g_target)`` and the goal ``phi(s_{t+1})`` the step actually reached, in raw goal coordinates.
+    pair ``(g, g_target)`` and the goal ``phi(s_{t+1})`` the step actually reached, in raw goal coordinates (with
+    ``stride``, the goal reached ``stride`` steps later: :func:`strided_labels`).
 
     :param model: the teacher, any SB3 agent with continuous actions
     :param env: the env the teacher acts in (observations as the policy sees them: with its ``VecNormalize``, if
@@ -173,6 +199,7 @@ def rollout_pairs(
     :param seed: seed of the env's resets, of the sampled actions and of the noise
     :param deterministic: act with the policy's deterministic action (UDPO: ``I(s, E[h])``); False samples actions
     :param noise: standard deviation of Gaussian noise added to the normalised action (in ``[-1, 1]``, clipped there)
+    :param stride: steps between a pair and its label (the rollout runs ``stride - 1`` steps more per env)
     :return: the steps (:class:`Rollouts`)
     """
     venv = env if isinstance(env, VecEnv) else model._wrap_env(env)
@@ -181,6 +208,7 @@ def rollout_pairs(
     rng = np.random.default_rng(seed)
     seen: list[dict[str, np.ndarray]] = []  # observations as the policy sees them, and the goals reached
     reached_goals: list[np.ndarray] = []
+    breaks: list[np.ndarray] = []  # the step ends its episode, or its target goal changes after it
     successes: list[float] = []
     step_successes: list[float] = []
     try:
@@ -191,7 +219,7 @@ def rollout_pairs(
         assert isinstance(obs, dict)
         with th.random.fork_rng(devices=[]):
             th.manual_seed(seed)
-            for _ in range(-(-n_samples // venv.num_envs)):
+            for _ in range(-(-n_samples // venv.num_envs) + stride - 1):
                 actions, _ = model.predict(obs, deterministic=deterministic)
                 if noise > 0:
                     noisy = model.policy.scale_action(actions) + noise * rng.standard_normal(actions.shape)
@@ -203,8 +231,12 @@ def rollout_pairs(
                 for index in np.flatnonzero(dones):  # the env reset: the real next state is the terminal observation
                     reached[index] = infos[index]["terminal_observation"]["achieved_goal"]
                     successes.append(_reported_success(infos[index]))
+                changed = np.any(
+                    next_obs["desired_goal"] != obs["desired_goal"], axis=tuple(range(1, obs["desired_goal"].ndim))
+                )
                 seen.append(obs)
                 reached_goals.append(reached)
+                breaks.append(dones | changed)
                 obs = next_obs
     finally:
         if vec_normalize is not None:
@@ -214,7 +246,8 @@ def rollout_pairs(
         if isinstance(getattr(model, "replay_buffer", None), HerReplayBuffer):
             model.replay_buffer.truncate_last_trajectory()  # type: ignore[attr-defined]
     observations = {key: np.concatenate([obs[key] for obs in seen])[:n_samples] for key in seen[0]}
-    next_goals = np.concatenate(reached_goals)[:n_samples]
+    labels = strided_labels(np.stack(reached_goals), np.stack(breaks), stride)
+    next_goals = labels.reshape(-1, labels.shape[-1])[:n_samples]
     if vec_normalize is not None:  # back to raw coordinates, once
         next_goals = vec_normalize.unnormalize_obs({**observations, "achieved_goal": next_goals})["achieved_goal"]
         observations = vec_normalize.unnormalize_obs(observations)  # type: ignore[assignment]
@@ -237,6 +270,7 @@ def distillation_data(
     deterministic: bool = False,
     rollout_noise: float = 0.0,
     allow_unsuccessful_teacher: bool = False,
+    stride: int = 1,
 ) -> tuple[DistillationData, dict[str, float]]:
     """
     ``n_samples`` pairs ``(g, g_target)`` labelled with the teacher's next goal: real steps of its episodes in
@@ -252,13 +286,14 @@ def distillation_data(
     :param deterministic: the rollouts' actions (see :func:`rollout_pairs`)
     :param rollout_noise: the rollouts' action noise (see :func:`rollout_pairs`)
     :param allow_unsuccessful_teacher: go on when the rollouts reach no goal (else a ``ValueError``)
+    :param stride: the rollouts' steps from a pair to its label (see :func:`rollout_pairs`)
     :return: the pairs, and facts about them for the planner's metadata
     """
     facts: dict[str, float] = {}
     if labels == "rollouts":
         env = model.get_env() if env is None else env
         assert env is not None, "check_teacher refuses a teacher without env"
-        rollouts = rollout_pairs(model, env, n_samples, seed, deterministic, rollout_noise)
+        rollouts = rollout_pairs(model, env, n_samples, seed, deterministic, rollout_noise, stride)
         if rollouts.goal_steps == 0 and not allow_unsuccessful_teacher:
             raise ValueError(
                 f"The {type(model).__name__} teacher's rollouts reached no goal in {n_samples} steps: a planner "
@@ -365,6 +400,7 @@ def distill_goal_planner(
     support_size: int = 20_000,
     rollout_noise: float | None = None,
     allow_unsuccessful_teacher: bool = False,
+    stride: int = 1,
 ) -> GoalPlanner:
     """
     Distil a goal-reaching teacher into a goal planner ``f(g' | g, g_target)`` (the student) by maximum likelihood,
@@ -390,7 +426,12 @@ def distill_goal_planner(
     algorithm (``teacher_algorithm``), the labels, ``rollout_success`` (the success rate of the rollouts' ended
     episodes) and ``holdout``: the student against the teacher on a held-out share of the pairs, before and after
     training (``nll``, ``landmark_distance``, their ``*_untrained`` values, and ``teacher_step``, the mean distance from
-    ``g`` to the teacher's next goal, for scale).
+    ``g`` to the teacher's next goal, for scale). A student no closer to the teacher's next goals than an untrained one,
+    which stays put (``landmark_distance`` at least :data:`STAY_PUT_RATIO` of ``landmark_distance_untrained``), is
+    warned about: its landmarks are the agent's own position. That is what a teacher whose one step is small against
+    its spread gives (a slow agent, or one whose step follows its velocity more than its goal, as PointMaze's ball):
+    ``stride=N`` labels each pair with the goal reached ``N`` steps later (``labels="rollouts"``), so that one planner
+    step is ``N`` teacher steps.
 
     :param model: the trained teacher, or the path of its file
     :param n_samples: number of (state, target goal) pairs (env steps for ``"rollouts"``), held-out ones included
@@ -417,6 +458,8 @@ def distill_goal_planner(
         ``[-1, 1]``); None: 0.1 for a teacher whose policy is deterministic (TD3, DDPG: its rollouts would otherwise
         have no spread) unless ``deterministic``, 0 for the others
     :param allow_unsuccessful_teacher: distil a teacher whose rollouts reach no goal (refused by default)
+    :param stride: with ``"rollouts"``, teacher steps from a pair ``(g, g_target)`` to its label: the goal reached
+        ``stride`` steps later, or where the episode ends or ``g_target`` changes, if sooner (1: the next goal)
     :return: the distilled goal planner (on the model's device)
     """
     check_number("holdout_fraction", holdout_fraction, minimum=0, strict=True)
@@ -424,6 +467,9 @@ def distill_goal_planner(
     for name, value in (("n_samples", n_samples), ("gradient_steps", gradient_steps), ("batch_size", batch_size)):
         check_number(name, value, minimum=1, integer=True)
     check_number("support_size", support_size, minimum=0, integer=True)
+    check_number("stride", stride, minimum=1, integer=True)
+    if stride > 1 and labels != "rollouts":
+        raise ValueError(f"stride={stride} labels the teacher's real steps: it needs labels='rollouts', not {labels!r}.")
     if rollout_noise is not None:
         check_number("rollout_noise", rollout_noise, minimum=0)
     if holdout_fraction >= 1:
@@ -449,7 +495,7 @@ def distill_goal_planner(
         logger = Logger(None, [HumanOutputFormat(sys.stdout)] if verbose >= 1 else [])
 
     data, facts = distillation_data(
-        model, n_samples, seed, labels, env, deterministic, rollout_noise, allow_unsuccessful_teacher
+        model, n_samples, seed, labels, env, deterministic, rollout_noise, allow_unsuccessful_teacher, stride
     )
     holdout, train = data.rows(slice(n_holdout)), data.rows(slice(n_holdout, None))
     generator = th.Generator(device=model.device).manual_seed(seed)
@@ -468,6 +514,7 @@ def distill_goal_planner(
             "teacher_num_timesteps": model.num_timesteps,
             "labels": labels,
             **({"deterministic": deterministic, "rollout_noise": rollout_noise} if labels == "rollouts" else {}),
+            **({"stride": stride} if stride > 1 else {}),
             **facts,
         }
         planner = GoalPlanner(data.achieved_goal.shape[1], net_arch, metadata=metadata).to(model.device)
@@ -490,4 +537,30 @@ def distill_goal_planner(
     for key, value in report.items():
         logger.record(f"distill/holdout_{key}", value)
     logger.dump(gradient_steps)
+    if stays_put(report):
+        warnings.warn(stay_put_message(report, stride), stacklevel=2)
     return planner
+
+
+#: A student whose held-out landmarks are at least this share of an untrained one's distance from the teacher's next
+#: goals learnt nothing beyond staying put (:func:`stays_put`).
+STAY_PUT_RATIO = 0.9
+
+
+def stays_put(holdout: dict[str, float]) -> bool:
+    """
+    :param holdout: a planner's ``metadata["holdout"]``
+    :return: whether the student learnt nothing beyond staying put (:data:`STAY_PUT_RATIO`)
+    """
+    return holdout["landmark_distance"] >= STAY_PUT_RATIO * holdout["landmark_distance_untrained"]
+
+
+def stay_put_message(holdout: dict[str, float], stride: int) -> str:
+    """What a planner that stays put is, and what to do (:func:`distill_goal_planner`'s warning)."""
+    return (
+        f"The distilled planner learnt nothing beyond staying put: its held-out landmarks are "
+        f"{holdout['landmark_distance']:.4g} from the teacher's next goals, an untrained planner's (the agent's own "
+        f"goal) {holdout['landmark_distance_untrained']:.4g}, a teacher step being {holdout['teacher_step']:.4g} "
+        f"(stride {stride}). The teacher's step is too small or too noisy to plan from where it is: distil with a "
+        "larger stride (e.g. stride=10: landmarks 10 teacher steps ahead), or train the teacher on."
+    )
