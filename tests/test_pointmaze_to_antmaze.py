@@ -226,3 +226,31 @@ def test_gymnasiums_ant_controller_refused_on_the_literatures_umaze(tmp_path: Pa
         own = gym.make("AntMaze_UMaze-v5", **env_kwargs)
         check_controller_ant(model, own)
         maze.close(), own.close()
+
+
+def test_the_controllers_task_options_travel_with_it(tmp_path: Path) -> None:
+    """What a controller sees and which Ant it moves come from its zoo run (a machine path of the package's Ant file
+    found here); a guided task asking for others is refused by name, and observations that differ are named."""
+    import yaml
+
+    from sb3_pilot.envs.locomotion import ANT_XML_FILES
+    from sb3_pilot.experiments.challenges.controller import check_controller_inputs
+    from sb3_pilot.experiments.zoo_run import carried_env_kwargs, with_carried_env_kwargs
+
+    model = tmp_path / "AntMaze_Open-v5.zip"
+    (model.parent / model.stem).mkdir()
+    elsewhere = "/another/machine/sb3_pilot/envs/assets/ant_hrl.xml"
+    trained = {"max_episode_steps": 500, "include_cfrc_ext_in_observation": False, "xml_file": elsewhere}
+    (model.parent / model.stem / "args.yml").write_text(yaml.safe_dump({"env": "AntMaze_Open-v5", "env_kwargs": trained}))
+    carried = {"include_cfrc_ext_in_observation": False, "xml_file": ANT_XML_FILES["hrl"]}
+    assert carried_env_kwargs(model) == carried
+    assert with_carried_env_kwargs(model, {"continuing_task": False}) == {**carried, "continuing_task": False}
+    with pytest.raises(ValueError, match=r"include_cfrc_ext_in_observation=True \(trained with False\)"):
+        with_carried_env_kwargs(model, {"include_cfrc_ext_in_observation": True})
+    assert carried_env_kwargs(tmp_path / "no_settings.zip") == {}
+
+    controller_space = gym.make("AntMaze_Open-v5", **carried).observation_space
+    with_forces = gym.make("AntMaze_Medium-v5", xml_file=ANT_XML_FILES["hrl"])
+    with pytest.raises(ValueError, match=r"observation: \(27,\) trained, \(105,\) here.*include_cfrc_ext_in_observation"):
+        check_controller_inputs(model, controller_space, with_forces)
+    check_controller_inputs(model, controller_space, gym.make("AntMaze_Medium-v5", **with_carried_env_kwargs(model, {})))

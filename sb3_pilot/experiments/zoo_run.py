@@ -121,6 +121,57 @@ def zoo_env_kwargs(model_path: Path) -> dict[str, Any]:
     return env_kwargs_rule(yaml_entry.get("env_kwargs"), command_line.get("env_kwargs"))
 
 
+#: Task options that decide what a controller sees or which body it moves: a task it is guided on must share them with
+#: the task it trained on (:func:`carried_env_kwargs`): gymnasium-robotics' and gymnasium's Ant ``xml_file`` and the
+#: contact forces in its observation.
+CARRIED_ENV_KWARGS = ("xml_file", "include_cfrc_ext_in_observation")
+
+
+def _packaged_file(path: str) -> str:
+    """A MuJoCo file path as it was saved, or, where that path is not here (a run trained on another machine), the
+    package's own file of that name (:data:`~sb3_pilot.envs.locomotion.ANT_XML_FILES`)."""
+    from sb3_pilot.envs.locomotion import ANT_XML_FILES
+
+    if os.path.isfile(path):
+        return path
+    return next((known for known in ANT_XML_FILES.values() if os.path.basename(known) == os.path.basename(path)), path)
+
+
+def carried_env_kwargs(model_path: Path) -> dict[str, Any]:
+    """
+    The options of a zoo run's task (:func:`zoo_env_kwargs`) that a task it is guided on must share
+    (:data:`CARRIED_ENV_KWARGS`), an ``xml_file`` of the package found where the run's machine had it elsewhere.
+
+    :param model_path: ``<run folder>/<env name>.zip`` (its saved settings beside it)
+    :return: those options it trained with (empty: a model without saved settings, or none of them set)
+    """
+    kwargs = {key: value for key, value in zoo_env_kwargs(model_path).items() if key in CARRIED_ENV_KWARGS}
+    if isinstance(kwargs.get("xml_file"), str):
+        kwargs["xml_file"] = _packaged_file(kwargs["xml_file"])
+    return kwargs
+
+
+def with_carried_env_kwargs(model_path: Path, env_kwargs: dict[str, Any]) -> dict[str, Any]:
+    """
+    A guided task's options with the controller's :func:`carried_env_kwargs` added where they are not given.
+
+    :param model_path: the controller (a zoo run's model)
+    :param env_kwargs: the guided task's options
+    :return: a new dict
+    :raise ValueError: naming the option, where ``env_kwargs`` gives one of them another value than the controller's
+    """
+    carried = carried_env_kwargs(model_path)
+    clashes = [key for key in carried if key in env_kwargs and env_kwargs[key] != carried[key]]
+    if clashes:
+        named = ", ".join(f"{key}={env_kwargs[key]!r} (trained with {carried[key]!r})" for key in clashes)
+        raise ValueError(
+            f"The controller {model_path} trained with other task options than the task it is to be guided on: "
+            f"{named}. It sees, or moves, another body there: guide it with its own, or leave them out (they are "
+            "carried from its run)."
+        )
+    return {**carried, **env_kwargs}
+
+
 def training_task(model_path: Path, max_episode_steps: int | None = None) -> gym.Env:
     """
     The task a zoo run trained on, rebuilt from its saved settings: its ID, ``env_kwargs`` and ``env_wrapper``.
@@ -131,7 +182,8 @@ def training_task(model_path: Path, max_episode_steps: int | None = None) -> gym
     from rl_zoo3.utils import get_wrapper_class
 
     hyperparams = zoo_saved(model_path, "config.yml")
-    kwargs = zoo_env_kwargs(model_path) | ({"max_episode_steps": max_episode_steps} if max_episode_steps else {})
+    kwargs = zoo_env_kwargs(model_path) | carried_env_kwargs(model_path)
+    kwargs |= {"max_episode_steps": max_episode_steps} if max_episode_steps else {}
     env = gym.make(zoo_env_id(model_path), **kwargs)
     wrapper = get_wrapper_class(hyperparams)
     return env if wrapper is None else wrapper(env)

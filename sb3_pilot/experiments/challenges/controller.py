@@ -30,7 +30,13 @@ from sb3_pilot.distill import GoalMap, GoalPlanner, share_goal_space
 from sb3_pilot.envs.locomotion import ant_of, check_same_ant
 from sb3_pilot.envs.maze import UMAZE_GOAL_CELL, UMAZE_MAP, UMAZE_START_CELL
 from sb3_pilot.experiments.challenges.stages import StageContext, play_episodes
-from sb3_pilot.experiments.zoo_run import load_zoo_model, training_task, zoo_saved
+from sb3_pilot.experiments.zoo_run import (
+    CARRIED_ENV_KWARGS,
+    load_zoo_model,
+    training_task,
+    with_carried_env_kwargs,
+    zoo_saved,
+)
 from sb3_pilot.transfer import LandmarkGuidance, horizon_for_lead
 
 
@@ -69,6 +75,35 @@ def check_controller_ant(model_path: Path, task: gym.Env) -> None:
     trained = training_task(model_path)
     check_same_ant(trained, task, controller_name=str(model_path))
     trained.close()
+
+
+def check_controller_inputs(model_path: Path, observation_space: gym.Space, task: gym.Env) -> None:
+    """
+    Refuse a controller whose observations are not those of the task it is to act in (e.g. an Ant trained without the
+    contact forces in its observation, guided on a task that has them), naming the observations that differ.
+
+    :param model_path: the controller's zip (for the message)
+    :param observation_space: the controller's observation space
+    :param task: the task (guided or not)
+    :raises ValueError: if a key or shape differs
+    """
+    trained, given = observation_space, task.observation_space
+    if isinstance(trained, gym.spaces.Dict) and isinstance(given, gym.spaces.Dict):
+        keys = sorted(set(trained.spaces) | set(given.spaces))
+        shapes = {
+            key: (getattr(trained.spaces.get(key), "shape", None), getattr(given.spaces.get(key), "shape", None))
+            for key in keys
+        }
+    else:
+        shapes = {"observation": (trained.shape, given.shape)}
+    differ = {key: pair for key, pair in shapes.items() if pair[0] != pair[1]}
+    if differ:
+        named = ", ".join(f"{key}: {old} trained, {new} here" for key, (old, new) in differ.items())
+        raise ValueError(
+            f"The controller {model_path} sees other observations than this task gives ({named}): build the task with "
+            f"the options it trained with (those that change what it sees: {', '.join(CARRIED_ENV_KWARGS)}; its zoo "
+            "run's args.yml and config.yml have them)."
+        )
 
 
 def reported_success(info: dict[str, Any]) -> float:
@@ -184,9 +219,14 @@ class ControllerEvaluation:
         return f"{self.controller} on {self.env_id}, {guide}, {self.n_episodes(ctx)} episodes"
 
     def make_env(self, ctx: StageContext) -> gym.Env:
-        """The task (its episodes cut at the budget's steps for this stage), guided if there is a planner."""
+        """
+        The task (its episodes cut at the budget's steps for this stage), with the options of the controller's run that
+        decide what it sees and which body moves (:func:`~sb3_pilot.experiments.zoo_run.with_carried_env_kwargs`),
+        guided if there is a planner.
+        """
         max_steps = ctx.steps.get(self.name)
-        task = gym.make(self.env_id, **self.env_kwargs, **({"max_episode_steps": max_steps} if max_steps else {}))
+        env_kwargs = with_carried_env_kwargs(ctx.outputs[self.controller], self.env_kwargs)
+        task = gym.make(self.env_id, **env_kwargs, **({"max_episode_steps": max_steps} if max_steps else {}))
         if self.planner is None:
             return task
         planner = GoalPlanner.load(ctx.outputs[self.planner])
@@ -205,6 +245,7 @@ class ControllerEvaluation:
         controller, vec_normalize = load_zoo_model(ctx.outputs[self.controller], algo=self.controller_algo)
         env = self.make_env(ctx)
         check_controller_ant(ctx.outputs[self.controller], env)
+        check_controller_inputs(ctx.outputs[self.controller], controller.observation_space, env)
         successes, final_distances, episodes = [], [], []
         for observation, info in play_episodes(controller, vec_normalize, env, self.n_episodes(ctx), ctx.seed):
             successes.append(reported_success(info))
