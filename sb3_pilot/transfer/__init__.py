@@ -4,16 +4,28 @@ under another action space, and zero-shot landmark guidance of a pre-trained con
 """
 
 from sb3_pilot.transfer.bonus import SIMILARITIES, PilotBonusWrapper, PilotHerReplayBuffer
-from sb3_pilot.transfer.guidance import LandmarkGuidance, horizon_for_lead, landmark_leads
+from sb3_pilot.transfer.guidance import (
+    GuidanceSettings,
+    LandmarkGuidance,
+    choose_guidance,
+    goal_bias,
+    horizon_for_lead,
+    landmark_leads,
+    success_radius,
+)
 from sb3_pilot.transfer.state_planner import StatePlannerTransferCallback, load_planner_from
 
 __all__ = [
     "SIMILARITIES",
+    "GuidanceSettings",
     "LandmarkGuidance",
     "PilotBonusWrapper",
     "PilotHerReplayBuffer",
     "StatePlannerTransferCallback",
+    "choose_guidance",
+    "goal_bias",
     "horizon_for_lead",
     "landmark_leads",
     "load_planner_from",
+    "success_radius",
 ]

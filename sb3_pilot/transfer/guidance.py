@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from typing import Any, SupportsFloat
+from typing import Any, NamedTuple, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -121,9 +121,7 @@ def landmark_leads(
     check_number("max_horizon", max_horizon, minimum=1, integer=True)
     check_number("episodes", episodes, minimum=1, integer=True)
     goal_planner, goal_map = GoalPlanner.for_env(planner, env)
-    pairs = [env.reset(seed=10_000 * seed + episode)[0] for episode in range(episodes)]
-    starts = np.array([pair["achieved_goal"] for pair in pairs], dtype=np.float64)
-    goals = np.array([pair["desired_goal"] for pair in pairs], dtype=np.float64)
+    starts, goals = _task_pairs(env, episodes, seed)
 
     def chained(achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
         return goal_planner.plan(achieved_goal, desired_goal, horizon=max_horizon, snap=False)
@@ -149,3 +147,106 @@ def horizon_for_lead(
     check_number("lead", lead, minimum=0, strict=True)
     leads = landmark_leads(env, planner, max_horizon=max_horizon, episodes=episodes)
     return int(np.argmin(np.abs(leads - lead))) + 1
+
+
+#: The success radius gymnasium-robotics' mazes (``PointMaze_*``, ``AntMaze_*``) hard-code (``maze_v4.MazeEnv``).
+GYMNASIUM_ROBOTICS_MAZE_RADIUS = 0.45
+
+
+def success_radius(env: gym.Env) -> float:
+    """
+    The distance to the goal within which a task counts it reached: its ``distance_threshold`` (the ``Pilot/`` tasks,
+    gymnasium-robotics' Fetch), else :data:`GYMNASIUM_ROBOTICS_MAZE_RADIUS` for gymnasium-robotics' mazes.
+
+    :param env: a goal env
+    :raise ValueError: for a task that says neither (pass the radius yourself)
+    """
+    task = env.unwrapped
+    radius = getattr(task, "distance_threshold", None)
+    if radius is not None:
+        return float(radius)
+    if type(task).__module__.startswith("gymnasium_robotics.envs.maze"):
+        return GYMNASIUM_ROBOTICS_MAZE_RADIUS
+    raise ValueError(
+        f"{type(task).__name__} says no success radius (no distance_threshold attribute): give it (--success-radius)."
+    )
+
+
+def _task_pairs(env: gym.Env, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The achieved and desired goals of ``episodes`` resets of ``env`` (seeds ``10_000 * seed + i``)."""
+    pairs = [env.reset(seed=10_000 * seed + episode)[0] for episode in range(episodes)]
+    starts = np.array([pair["achieved_goal"] for pair in pairs], dtype=np.float64)
+    return starts, np.array([pair["desired_goal"] for pair in pairs], dtype=np.float64)
+
+
+def goal_bias(
+    env: gym.Env, planner: GoalPlanner | str | os.PathLike, horizon: int, episodes: int = 100, seed: int = 0
+) -> float:
+    """
+    How far from a goal the planner's landmark for it lies once the agent is there: the median over the task's goals
+    (``episodes`` resets) of ``||landmark_k(g, g) - g||``. A controller that follows the landmarks settles about there,
+    and with the default switch rule (the real goal once it is closer than the landmark) it never sees the goal itself.
+
+    :param env: the goal env to guide in
+    :param planner: the goal planner, or its file
+    :param horizon: the guidance horizon ``k``
+    :param episodes: goals measured (resets of ``env``)
+    :param seed: seed of the resets
+    """
+    check_number("horizon", horizon, minimum=1, integer=True)
+    goal_planner, goal_map = GoalPlanner.for_env(planner, env)
+    _, goals = _task_pairs(env, episodes, seed)
+
+    def chained(achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
+        return goal_planner.plan(achieved_goal, desired_goal, horizon=horizon, snap=False)[:, -1]
+
+    landmarks = chained(goals, goals) if goal_map is None else goal_map.through(chained, goals, goals)
+    return float(np.median(np.linalg.norm(landmarks - goals, axis=-1)))
+
+
+class GuidanceSettings(NamedTuple):
+    """
+    :func:`choose_guidance`'s choice, and what it was chosen from.
+
+    :param horizon: the guidance horizon ``k``
+    :param switch_distance: :class:`LandmarkGuidance`'s ``switch_distance``
+    :param leads: the median lead of the ``k``-th landmark, ``k = 1 .. max_horizon`` (:func:`landmark_leads`)
+    :param goal_bias: :func:`goal_bias` at ``horizon``
+    :param success_radius: the task's success radius
+    """
+
+    horizon: int
+    switch_distance: float
+    leads: np.ndarray
+    goal_bias: float
+    success_radius: float
+
+
+def choose_guidance(
+    env: gym.Env,
+    planner: GoalPlanner | str | os.PathLike,
+    lead: float,
+    radius: float | None = None,
+    max_horizon: int = 10,
+    episodes: int = 100,
+) -> GuidanceSettings:
+    """
+    The guidance settings of a planner on a task, from the planner and the task's success radius, measured on the
+    task's own start and goal pairs (no episode is played): ``k`` whose landmark lies closest to ``lead`` ahead
+    (:func:`horizon_for_lead`), and a switch to the real goal within the success radius plus the planner's
+    :func:`goal_bias` at that ``k``, so that an agent settled on the landmark of a goal sees the goal.
+
+    :param env: the goal env to guide in
+    :param planner: the goal planner, or its file
+    :param lead: the wanted distance of the landmark ahead, in the env's goal units (the controller's training goals')
+    :param radius: the task's success radius (None: :func:`success_radius`)
+    :param max_horizon: the largest ``k`` considered
+    :param episodes: start and goal pairs measured
+    """
+    check_number("lead", lead, minimum=0, strict=True)
+    radius = success_radius(env) if radius is None else radius
+    check_number("radius", radius, minimum=0)
+    leads = landmark_leads(env, planner, max_horizon=max_horizon, episodes=episodes)
+    horizon = int(np.argmin(np.abs(leads - lead))) + 1
+    bias = goal_bias(env, planner, horizon, episodes=episodes)
+    return GuidanceSettings(horizon, radius + bias, leads, bias, radius)

@@ -115,6 +115,37 @@ def reported_success(info: dict[str, Any]) -> float:
     raise KeyError(f"The task reports no success in its info (no 'is_success' nor 'success' key): {sorted(info)}.")
 
 
+def controller_episodes(model_path: Path, env: gym.Env, episodes: int, seed: int, algo: str | None = None) -> dict[str, Any]:
+    """
+    A zoo-saved controller's deterministic episodes on a task, guided (a :class:`~sb3_pilot.LandmarkGuidance`) or not,
+    after checking that it is the task's Ant and sees the task's observations (:func:`check_controller_ant`,
+    :func:`check_controller_inputs`); episode ``i`` reset with seed ``10_000 * seed + i``.
+
+    :param model_path: the controller (a zoo run's model, its saved settings beside it)
+    :param env: the task
+    :param episodes: number of episodes
+    :param seed: seed of the evaluation
+    :param algo: its zoo algorithm (None: from its run)
+    :return: ``successes`` (the task's success at each episode's end), ``final_distances`` (to the real goal),
+        ``episodes`` (each one's real goal, and with guidance its achieved goals and landmarks) and, with guidance,
+        ``horizon``
+    """
+    controller, vec_normalize = load_zoo_model(model_path, algo=algo)
+    check_controller_ant(model_path, env)
+    check_controller_inputs(model_path, controller.observation_space, env)
+    successes, final_distances, played = [], [], []
+    for observation, info in play_episodes(controller, vec_normalize, env, episodes, seed):
+        successes.append(reported_success(info))
+        goal = np.asarray(info.get("real_desired_goal", observation["desired_goal"]))
+        final_distances.append(float(np.linalg.norm(observation["achieved_goal"] - goal)))
+        episode = {"desired_goal": goal.tolist()}
+        if isinstance(env, LandmarkGuidance):
+            episode |= {"achieved_goals": env.episode_achieved_goals.tolist(), "landmarks": env.episode_landmarks.tolist()}
+        played.append(episode)
+    result: dict[str, Any] = {"successes": successes, "final_distances": final_distances, "episodes": played}
+    return result | ({"horizon": env.horizon} if isinstance(env, LandmarkGuidance) else {})
+
+
 @dataclass(frozen=True)
 class ControllerEvaluation:
     """
@@ -242,31 +273,13 @@ class ControllerEvaluation:
         from sb3_pilot.experiments.zoo import register
 
         register()  # gymnasium-robotics' tasks, in the stage's process
-        controller, vec_normalize = load_zoo_model(ctx.outputs[self.controller], algo=self.controller_algo)
         env = self.make_env(ctx)
-        check_controller_ant(ctx.outputs[self.controller], env)
-        check_controller_inputs(ctx.outputs[self.controller], controller.observation_space, env)
-        successes, final_distances, episodes = [], [], []
-        for observation, info in play_episodes(controller, vec_normalize, env, self.n_episodes(ctx), ctx.seed):
-            successes.append(reported_success(info))
-            goal = np.asarray(info.get("real_desired_goal", observation["desired_goal"]))
-            final_distances.append(float(np.linalg.norm(observation["achieved_goal"] - goal)))
-            episode = {"desired_goal": goal.tolist()}
-            if isinstance(env, LandmarkGuidance):
-                episode |= {"achieved_goals": env.episode_achieved_goals.tolist(), "landmarks": env.episode_landmarks.tolist()}
-            episodes.append(episode)
+        played = controller_episodes(ctx.outputs[self.controller], env, self.n_episodes(ctx), ctx.seed, self.controller_algo)
         env.close()
         stage_dir.mkdir(parents=True, exist_ok=True)
-        result = {
-            "planner": None if self.planner is None else str(ctx.outputs[self.planner]),
-            "timesteps": [0],
-            "success_rate": [float(np.mean(successes))],
-            "successes": successes,
-            "final_distances": final_distances,
-        }
-        if isinstance(env, LandmarkGuidance):
-            result["horizon"] = env.horizon
-        self.output(stage_dir).write_text(json.dumps({**result, "episodes": episodes}))
+        planner = None if self.planner is None else str(ctx.outputs[self.planner])
+        result = {"planner": planner, "timesteps": [0], "success_rate": [float(np.mean(played["successes"]))], **played}
+        self.output(stage_dir).write_text(json.dumps(result))
 
     def curve(self, stage_dir: Path) -> tuple[list[int], list[float]]:
         """One point: the success rate after 0 steps on the task."""
