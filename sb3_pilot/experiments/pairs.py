@@ -41,7 +41,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from sb3_pilot.experiments.challenges.definitions import CHALLENGES, HER, REUSE_SHIPPED
+from sb3_pilot.experiments.challenges.definitions import CHALLENGES, HER, REUSE_SHIPPED, VARIANTS
 from sb3_pilot.experiments.challenges.runner import count_sources, describe_source, mean_curve, source_learning
 from sb3_pilot.experiments.challenges.stages import play_episodes, zoo_run_dir
 from sb3_pilot.experiments.evaluation import load_final_distances
@@ -50,8 +50,15 @@ from sb3_pilot.experiments.zoo import register
 from sb3_pilot.experiments.zoo_run import load_zoo_model
 
 FINAL_EVAL = "final_eval.json"
-#: Every challenge by its output folder's name, those of ``--reuse-shipped`` included.
-BY_FOLDER = {challenge.name: challenge for challenge in (*CHALLENGES.values(), *REUSE_SHIPPED.values())}
+#: Every challenge by its output folder's name, those of ``--reuse-shipped`` and ``--variant`` included.
+BY_FOLDER = {
+    challenge.name: challenge
+    for challenge in (
+        *CHALLENGES.values(),
+        *REUSE_SHIPPED.values(),
+        *(variant for variants in VARIANTS.values() for variant in variants.values()),
+    )
+}
 
 
 def evaluate_final(run_dir: Path, episodes: int = 10) -> dict[str, Any]:
