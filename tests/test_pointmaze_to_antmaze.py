@@ -244,13 +244,19 @@ def test_the_controllers_task_options_travel_with_it(tmp_path: Path) -> None:
     (model.parent / model.stem / "args.yml").write_text(yaml.safe_dump({"env": "AntMaze_Open-v5", "env_kwargs": trained}))
     carried = {"include_cfrc_ext_in_observation": False, "xml_file": ANT_XML_FILES["hrl"]}
     assert carried_env_kwargs(model) == carried
-    assert with_carried_env_kwargs(model, {"continuing_task": False}) == {**carried, "continuing_task": False}
+    assert with_carried_env_kwargs(model, "AntMaze_Medium-v5", {"continuing_task": False}) == {
+        **carried,
+        "continuing_task": False,
+    }
     with pytest.raises(ValueError, match=r"include_cfrc_ext_in_observation=True \(trained with False\)"):
-        with_carried_env_kwargs(model, {"include_cfrc_ext_in_observation": True})
+        with_carried_env_kwargs(model, "AntMaze_Medium-v5", {"include_cfrc_ext_in_observation": True})
     assert carried_env_kwargs(tmp_path / "no_settings.zip") == {}
+    assert with_carried_env_kwargs(model, "Pilot/AntMaze-v1", {}) == {}  # names its Ant by version: nothing carried
 
     controller_space = gym.make("AntMaze_Open-v5", **carried).observation_space
     with_forces = gym.make("AntMaze_Medium-v5", xml_file=ANT_XML_FILES["hrl"])
     with pytest.raises(ValueError, match=r"observation: \(27,\) trained, \(105,\) here.*include_cfrc_ext_in_observation"):
         check_controller_inputs(model, controller_space, with_forces)
-    check_controller_inputs(model, controller_space, gym.make("AntMaze_Medium-v5", **with_carried_env_kwargs(model, {})))
+    check_controller_inputs(
+        model, controller_space, gym.make("AntMaze_Medium-v5", **with_carried_env_kwargs(model, "AntMaze_Medium-v5", {}))
+    )

@@ -105,7 +105,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     if "holdout" in planner.metadata and stays_put(planner.metadata["holdout"]):
         parser.error(f"{args.planner}: {stay_put_message(planner.metadata['holdout'], planner.metadata.get('stride', 1))}")
     try:
-        env_kwargs = with_carried_env_kwargs(args.controller, args.env_kwargs)
+        env_kwargs = with_carried_env_kwargs(args.controller, args.env, args.env_kwargs)
     except ValueError as error:
         parser.error(str(error))
     if args.goal_scale is not None:

@@ -151,16 +151,31 @@ def carried_env_kwargs(model_path: Path) -> dict[str, Any]:
     return kwargs
 
 
-def with_carried_env_kwargs(model_path: Path, env_kwargs: dict[str, Any]) -> dict[str, Any]:
+def _accepted(env_id: str, key: str) -> bool:
+    """Whether the registered task ``env_id`` takes the option ``key`` (its entry point names it or takes ``**kwargs``)."""
+    import inspect
+
+    from gymnasium.envs.registration import load_env_creator
+
+    entry_point = gym.spec(env_id).entry_point
+    creator = load_env_creator(entry_point) if isinstance(entry_point, str) else entry_point
+    parameters = inspect.signature(creator).parameters
+    return key in parameters or any(parameter.kind is parameter.VAR_KEYWORD for parameter in parameters.values())
+
+
+def with_carried_env_kwargs(model_path: Path, env_id: str, env_kwargs: dict[str, Any]) -> dict[str, Any]:
     """
-    A guided task's options with the controller's :func:`carried_env_kwargs` added where they are not given.
+    A guided task's options with the controller's :func:`carried_env_kwargs` added where they are not given and the
+    task takes them (a ``Pilot/`` Ant task names its Ant by version, not by file: the Ant's check is
+    :func:`~sb3_pilot.envs.locomotion.check_same_ant`'s).
 
     :param model_path: the controller (a zoo run's model)
-    :param env_kwargs: the guided task's options
+    :param env_id: the guided task (a registered Gymnasium ID)
+    :param env_kwargs: its options
     :return: a new dict
     :raise ValueError: naming the option, where ``env_kwargs`` gives one of them another value than the controller's
     """
-    carried = carried_env_kwargs(model_path)
+    carried = {key: value for key, value in carried_env_kwargs(model_path).items() if _accepted(env_id, key)}
     clashes = [key for key in carried if key in env_kwargs and env_kwargs[key] != carried[key]]
     if clashes:
         named = ", ".join(f"{key}={env_kwargs[key]!r} (trained with {carried[key]!r})" for key in clashes)

@@ -256,7 +256,7 @@ class ControllerEvaluation:
         guided if there is a planner.
         """
         max_steps = ctx.steps.get(self.name)
-        env_kwargs = with_carried_env_kwargs(ctx.outputs[self.controller], self.env_kwargs)
+        env_kwargs = with_carried_env_kwargs(ctx.outputs[self.controller], self.env_id, self.env_kwargs)
         task = gym.make(self.env_id, **env_kwargs, **({"max_episode_steps": max_steps} if max_steps else {}))
         if self.planner is None:
             return task
