@@ -1,26 +1,30 @@
 """
-Pixel env steps per second of the image preset on CPU, the old path against the new one, in one run: ``LeanSAC`` +
+Pixel env steps per second of the image preset on CPU, today's path against the fast ones, in one run: ``LeanSAC`` +
 ``PixelGoalSACPolicy`` (NatureCNN, random shift 4, batch 64, HER, one gradient step per 2 env steps:
 ``hyperparams/image/sac.yml``'s ``Pilot/FetchReachImage-v0`` entry) training on ``Pilot/FetchReachImage-v0``.
 
-- ``old``: the task's frames as ``Pilot/FetchReachImage-v0`` draws them (4x multisampling);
-- ``new``: the same frames drawn without multisampling (``env_kwargs: {antialias: false}``).
+- ``old``: today's preset: the task's frames as ``Pilot/FetchReachImage-v0`` draws them (4x multisampling), and the
+  per-parameter Adam the pixel policy had before issue 61 (``optimizer_kwargs=dict(foreach=False)``);
+- ``new``: the fast path, same computation: frames drawn without multisampling (``env_kwargs: {antialias: false}``)
+  and the policy's fused Adam (the same updates up to float rounding);
+- ``drqv2``: ``new`` with DrQ-v2's target (``policy_kwargs: {online_target_features: true}``): the target critic reads
+  the shared encoder's features of the next observations, so the TD targets change (the curve check says by how much).
 
-Both encode a gradient step's observations once (``PixelGoalSACPolicy.encode``); the next observations go through the
-encoder for the actor and through the target critic's copy for the target, two different encoders (the target's lags
-by Polyak averaging), so the encoder runs 3 times a gradient step on either path (counted below).
+All encode a gradient step's observations once (``PixelGoalSACPolicy.encode``). ``old`` and ``new`` encode the next
+observations twice, for the actor and through the target critic's encoder copy (3 encoder passes a gradient step),
+``drqv2`` once, shared (2 passes; counted below).
 
 The paths alternate, ``--rounds`` times each, each round a fresh model (same seed) that first fills ``learning_starts``
 and then trains ``--steps`` env steps, timed by the wall clock and by the process's CPU time (less sensitive to
-other processes on a loaded machine). ``--frames DIR`` saves a frame of each path as PNG, with their mean absolute
-pixel difference over ``--frame-count`` frames; ``--curve N`` trains each path ``N`` steps from the same seed and
-evaluates success and final distance over 20 episodes (the cheap check that the curve is unchanged; ``--rounds 0``:
-the check alone).
+other processes on a loaded machine). ``--frames DIR`` saves a frame of the old and the new path as PNG, with their
+mean absolute pixel difference over ``--frame-count`` frames; ``--curve N`` trains each of ``--curve-paths`` ``N``
+steps from the same seed and evaluates success and final distance over 20 episodes (the cheap check that the curve
+is unchanged; ``--rounds 0``: the check alone).
 
 Usage::
 
     OMP_NUM_THREADS=1 MUJOCO_GL=osmesa nice -n 10 python -m benchmarks.pixel_speed [--steps 400] [--rounds 2] \\
-        [--frames docs/results/pixel_frames] [--curve 2000]
+        [--paths old,new,drqv2] [--frames docs/results/pixel_frames] [--curve 3000] [--curve-paths old,new,drqv2]
 """
 
 from __future__ import annotations
@@ -46,7 +50,13 @@ from sb3_pilot.sac import LeanSAC
 
 ENV_ID = "Pilot/FetchReachImage-v0"
 #: env kwargs of each path
-PATHS: dict[str, dict[str, Any]] = {"old": {"antialias": True}, "new": {"antialias": False}}
+PATHS: dict[str, dict[str, Any]] = {"old": {"antialias": True}, "new": {"antialias": False}, "drqv2": {"antialias": False}}
+#: policy kwargs each path adds to the preset's: today's per-parameter Adam, the fused default, DrQ-v2's target
+POLICY_KWARGS: dict[str, dict[str, Any]] = {
+    "old": {"optimizer_kwargs": {"foreach": False}},
+    "new": {},
+    "drqv2": {"online_target_features": True},
+}
 #: the preset's settings that the benchmark takes from its YAML entry (the replay buffer is sized to the run)
 PRESET_KEYS = ("gamma", "batch_size", "train_freq", "gradient_steps", "learning_rate", "policy_kwargs")
 #: SB3's SAC default, which the entry keeps
@@ -64,8 +74,10 @@ def preset() -> dict[str, Any]:
 
 
 def make_model(path: str, buffer_size: int, seed: int = 0) -> LeanSAC:
+    """The preset's model on the path's frames, with the path's policy settings (``PATHS``, ``POLICY_KWARGS``)."""
     env = make_vec_env(ENV_ID, seed=seed, env_kwargs=PATHS[path])
     settings = dict(preset(), learning_starts=LEARNING_STARTS, buffer_size=buffer_size, seed=seed, device="cpu")
+    settings["policy_kwargs"] = dict(settings["policy_kwargs"], **POLICY_KWARGS[path])
     return LeanSAC(PixelGoalSACPolicy, env, **settings)
 
 
@@ -104,7 +116,8 @@ def compare_frames(folder: Path, count: int) -> float:
     from PIL import Image
 
     frames: dict[str, list[np.ndarray]] = {}
-    for path, kwargs in PATHS.items():
+    for path in ("old", "new"):
+        kwargs = PATHS[path]
         env = gym.make(ENV_ID, **kwargs)
         obs, _ = env.reset(seed=0)
         rng = np.random.default_rng(0)
@@ -116,7 +129,7 @@ def compare_frames(folder: Path, count: int) -> float:
     folder.mkdir(parents=True, exist_ok=True)
     for path, images in frames.items():
         Image.fromarray(images[10]).resize((256, 256), Image.NEAREST).save(folder / f"fetch_reach_image_{path}.png")
-    old, new = (np.asarray(frames[path], dtype=np.int16) for path in PATHS)
+    old, new = (np.asarray(frames[path], dtype=np.int16) for path in frames)
     return float(np.abs(old - new).mean())
 
 
@@ -146,7 +159,8 @@ def main() -> None:
     parser.add_argument("--frames", type=Path, default=None, help="folder for a PNG frame of each path")
     parser.add_argument("--frame-count", type=int, default=100, help="frames compared for the pixel difference")
     parser.add_argument("--curve", type=int, default=0, help="env steps of the curve check per path (0: none)")
-    parser.add_argument("--curve-paths", default="old,new", help="the paths of the curve check, comma-separated")
+    parser.add_argument("--paths", default="old,new,drqv2", help="the timed paths, comma-separated (old first)")
+    parser.add_argument("--curve-paths", default="old,new,drqv2", help="the paths of the curve check, comma-separated")
     args = parser.parse_args()
     th.set_num_threads(1)
     register_envs()
@@ -155,17 +169,17 @@ def main() -> None:
         difference = compare_frames(args.frames, args.frame_count)
         print(f"frames: {args.frames}/fetch_reach_image_{{old,new}}.png; mean |old - new| {difference:.2f} / 255", flush=True)
     if args.rounds:
-        time_paths(args.steps, args.rounds)
+        time_paths(args.paths.split(","), args.steps, args.rounds)
     for path in args.curve_paths.split(",") if args.curve else ():
         success, distance = curve(path, args.curve)
         print(f"curve {path}, {args.curve} steps, seed 0: success {success:.2f}, final distance {distance:.3f}", flush=True)
 
 
-def time_paths(steps: int, rounds: int) -> None:
-    """Time the paths in turn, ``rounds`` times each, and print the medians and their ratio."""
-    results: dict[str, list[dict[str, float]]] = {path: [] for path in PATHS}
+def time_paths(paths: list[str], steps: int, rounds: int) -> None:
+    """Time the paths in turn, ``rounds`` times each, and print the medians and their ratios to the first path's."""
+    results: dict[str, list[dict[str, float]]] = {path: [] for path in paths}
     for round_index in range(rounds):
-        for path in PATHS:
+        for path in paths:
             result = time_path(path, steps)
             results[path].append(result)
             print(
@@ -174,12 +188,15 @@ def time_paths(steps: int, rounds: int) -> None:
                 flush=True,
             )
     medians = {path: {key: statistics.median(r[key] for r in rows) for key in rows[0]} for path, rows in results.items()}
-    old, new = medians["old"], medians["new"]
+    first = medians[paths[0]]
     print("| path | env steps/s (wall) | env steps per CPU second | frame (ms CPU) | encoder passes a gradient step |")
     print("|---|---|---|---|---|")
     for path, row in medians.items():
         print(f"| {path} | {row['wall']:.2f} | {row['cpu']:.2f} | {row['frame_ms']:.1f} | {row['passes']:.0f} |")
-    print(f"| new / old | {new['wall'] / old['wall']:.2f}x | {new['cpu'] / old['cpu']:.2f}x | | |", flush=True)
+    for path in paths[1:]:
+        row = medians[path]
+        ratios = f"{row['wall'] / first['wall']:.2f}x | {row['cpu'] / first['cpu']:.2f}x"
+        print(f"| {path} / {paths[0]} | {ratios} | | |", flush=True)
 
 
 if __name__ == "__main__":

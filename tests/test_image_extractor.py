@@ -27,7 +27,14 @@ from sb3_pilot.pixels import PixelGoalExtractor, PixelGoalSACPolicy, RandomShift
 from sb3_pilot.sac import LeanSAC
 
 
-def make_sac(encoder: str, seed: int = 0, random_shift: int = 0, algo: type[SAC] = SAC, goal_prediction: float = 0.0) -> SAC:
+def make_sac(
+    encoder: str,
+    seed: int = 0,
+    random_shift: int = 0,
+    algo: type[SAC] = SAC,
+    goal_prediction: float = 0.0,
+    **policy_kwargs: Any,
+) -> SAC:
     return algo(
         PixelGoalSACPolicy,
         ImageGoalEnv(),
@@ -39,6 +46,7 @@ def make_sac(encoder: str, seed: int = 0, random_shift: int = 0, algo: type[SAC]
             "net_arch": [16, 16],
             "features_extractor_kwargs": {"encoder": encoder, "random_shift": random_shift},
             "goal_prediction": goal_prediction,
+            **policy_kwargs,
         },
         seed=seed,
         device="cpu",
@@ -391,3 +399,83 @@ def test_former_paths_name_the_pixel_classes(tmp_path: Any) -> None:
     assert type(loaded.policy) is PixelGoalSACPolicy and loaded._step_hooks is loaded.policy
     for old, new in zip(model.policy.parameters(), loaded.policy.parameters(), strict=True):
         assert th.equal(old, new)
+
+
+# ---------------------------------------- The faster pixel step (issue 61): fused Adam, DrQ-v2's target as an option
+
+
+def one_step(model: SAC, batch: Any, seed: int = 1) -> list[Any]:
+    """Train ``model`` one gradient step on ``batch`` (seeded); the models whose encoders ran, one entry per pass."""
+    model.replay_buffer.sample = lambda *args, **kwargs: batch
+    model.set_logger(configure(None, []))
+    passes: list[Any] = []
+    extractors = {"shared": model.policy.critic.features_extractor, "target": model.policy.critic_target.features_extractor}
+    handles = [
+        extractor.register_forward_hook(lambda module, inputs, output, name=name: passes.append(name))
+        for name, extractor in extractors.items()
+    ]
+    th.manual_seed(seed)
+    model.train(gradient_steps=1, batch_size=len(batch.actions))
+    for handle in handles:
+        handle.remove()
+    return passes
+
+
+def twin(model: SAC, **policy_kwargs: Any) -> SAC:
+    """A LeanSAC with ``model``'s weights, temperature and replay buffer, and other policy settings."""
+    other = make_sac("nature", algo=LeanSAC, **policy_kwargs)
+    other.set_parameters(copy.deepcopy(model.get_parameters()))
+    with th.no_grad():
+        other.log_ent_coef.copy_(model.log_ent_coef)
+    other.replay_buffer, other._current_progress_remaining = model.replay_buffer, model._current_progress_remaining
+    return other
+
+
+def test_pixel_policy_adam_is_fused() -> None:
+    """The pixel policy's optimizers are fused Adam (as the lean policies'), and step as the per-parameter Adam does."""
+    model = make_sac("nature", algo=LeanSAC)
+    assert model.actor.optimizer.defaults["fused"] and model.critic.optimizer.defaults["fused"]
+    model.learn(40)
+    plain = twin(model, optimizer_kwargs={"foreach": False})
+    assert not plain.critic.optimizer.defaults["fused"]
+    batch = model.replay_buffer.sample(8)
+    for _ in range(3):  # Adam's moments in play from the second step on
+        one_step(model, batch)
+        one_step(plain, batch)
+    for name, value in plain.policy.state_dict().items():
+        th.testing.assert_close(model.policy.state_dict()[name], value, rtol=1e-5, atol=1e-6, msg=name)
+
+
+def test_online_target_features_drqv2_target() -> None:
+    """
+    online_target_features: s' goes through the shared encoder once, for the actor and the target (2 passes a step,
+    the target's copy unread). Where that copy equals the shared encoder and nothing is shifted, the step is the
+    default one's; the option is saved with the policy, and SB3's SAC, which would ignore it, refuses to train.
+    """
+    model = make_sac("nature", algo=LeanSAC)
+    model.learn(40)
+    target, shared = model.policy.critic_target.features_extractor, model.policy.critic.features_extractor
+    target.load_state_dict(shared.state_dict())
+    online = twin(model, online_target_features=True)
+    batch = model.replay_buffer.sample(8)
+    assert sorted(one_step(model, batch)) == ["shared", "shared", "target"]
+    assert one_step(online, batch) == ["shared", "shared"]
+    for name, value in model.policy.critic.state_dict().items():
+        th.testing.assert_close(online.policy.critic.state_dict()[name], value, rtol=1e-5, atol=1e-6, msg=name)
+    assert online.logger.name_to_value["train/critic_loss"] == pytest.approx(
+        model.logger.name_to_value["train/critic_loss"], rel=1e-5
+    )
+    # a target copy that lags: other targets
+    other = twin(model, online_target_features=True)
+    with th.no_grad():
+        for param in other.policy.critic_target.features_extractor.parameters():
+            param.mul_(0.5)
+    reference = twin(model)
+    reference.policy.critic_target.load_state_dict(other.policy.critic_target.state_dict())
+    one_step(other, batch)
+    one_step(reference, batch)
+    losses = [model.logger.name_to_value["train/critic_loss"] for model in (other, reference)]
+    assert losses[0] != pytest.approx(losses[1])
+    assert online.policy._get_constructor_parameters()["online_target_features"]
+    with pytest.raises(ValueError, match="online_target_features=True"):
+        make_sac("nature", online_target_features=True).learn(25)

@@ -158,6 +158,12 @@ class StepHooks(Protocol):
         :return: what the policy's actor and critic read in their place in this step (e.g. their features)
         """
 
+    def encode_next(self, next_observations: PyTorchObs) -> Any:
+        """
+        :param next_observations: the batch's next observations ``s'``, once per gradient step
+        :return: what the actor's next action and the target critic read in their place (e.g. themselves)
+        """
+
     def critic_auxiliary_losses(self, observations: Any) -> dict[str, tuple[float, th.Tensor]]:
         """
         :param observations: what :meth:`encode` returned, after the critic's loss pass on it
@@ -210,6 +216,13 @@ class LeanSACSteps:
         """
         return observations if self._step_hooks is None else self._step_hooks.encode(observations)
 
+    def _encode_next(self, next_observations: PyTorchObs) -> Any:
+        """
+        :param next_observations: the batch's next observations
+        :return: the policy's encoding of them for this step's target (:meth:`StepHooks.encode_next`), or themselves
+        """
+        return next_observations if self._step_hooks is None else self._step_hooks.encode_next(next_observations)
+
     def _entropy_coef_step(self, log_prob: th.Tensor, losses: LossRecorder) -> th.Tensor:
         """
         SAC's temperature step: loss ``-log(alpha) (log pi(a|s) + target_entropy)`` on the policy's log-probabilities.
@@ -257,7 +270,12 @@ class LeanSACSteps:
         self.critic.optimizer.step()
 
     def _target_q_values(
-        self, replay_data: ReplayBufferSamples, next_actions: th.Tensor, next_log_prob: th.Tensor, ent_coef: th.Tensor
+        self,
+        replay_data: ReplayBufferSamples,
+        next_actions: th.Tensor,
+        next_log_prob: th.Tensor,
+        ent_coef: th.Tensor,
+        next_observations: Any = None,
     ) -> th.Tensor:
         """
         SAC's TD target ``y = r + gamma (1 - d) (min_i Q'_i(s', a') - alpha log pi(a' | s'))``, without gradients.
@@ -266,11 +284,15 @@ class LeanSACSteps:
         :param next_actions: the policy's actions ``a'`` at the next observations ``s'``
         :param next_log_prob: their ``log pi(a' | s')``, shape ``(batch,)`` or ``(batch, 1)``
         :param ent_coef: ``alpha``
+        :param next_observations: what the target critic reads for ``s'`` (the policy's encoding of them,
+            :meth:`_encode_next`); None: the batch's next observations
         :return: the targets, shape ``(batch, 1)``
         """
         discounts = replay_data.discounts if replay_data.discounts is not None else self.gamma
+        if next_observations is None:
+            next_observations = replay_data.next_observations
         with th.no_grad():
-            next_q_values = q_values(self.critic_target, replay_data.next_observations, next_actions).amin(dim=0)
+            next_q_values = q_values(self.critic_target, next_observations, next_actions).amin(dim=0)
             next_q_values = next_q_values - ent_coef * next_log_prob.reshape(-1, 1)
             return replay_data.rewards + (1 - replay_data.dones) * discounts * next_q_values
 

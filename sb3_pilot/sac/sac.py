@@ -215,8 +215,10 @@ class LeanSAC(LeanSACSteps, SAC):
 
         # Critic loss: 1/2 sum_i (Q_i(s, a) - y)^2, y = r + gamma (1 - d) (min_i Q'_i(s', a') - alpha log pi(a' | s'))
         with th.no_grad():
-            next_actions, next_log_prob = self.action_log_prob(replay_data.next_observations)
-        target_q_values = self._target_q_values(replay_data, next_actions, next_log_prob, ent_coef)
+            # s' as the policy has the actor and the target read it (itself, or a pixel policy's shared features)
+            next_observations = self._encode_next(replay_data.next_observations)
+            next_actions, next_log_prob = self.action_log_prob(next_observations)
+        target_q_values = self._target_q_values(replay_data, next_actions, next_log_prob, ent_coef, next_observations)
         self._critic_step(observations, replay_data.actions, target_q_values, losses)
 
         # Actor loss: E[alpha log pi(a | s) - min_i Q_i(s, a)], gradients for the actor's parameters only
