@@ -182,13 +182,19 @@ def test_hrl_variant_is_the_literatures_ant_in_every_task() -> None:
     from sb3_pilot.experiments.challenges import CHALLENGES, challenge_variant
 
     names = ["controller", "pilot", "unguided", "open_ground"]
-    assert _ant_tasks("pointmaze-to-antmaze", "hrl") == dict.fromkeys(names, "hrl")
+    assert _ant_tasks("pointmaze-to-antmaze", "hrl") == dict.fromkeys(["pilot_switch", *names], "hrl")
     assert _ant_tasks("pointmaze-to-antmaze", None) == dict.fromkeys(names, "gymnasium")
     variant, challenge = challenge_variant("pointmaze-to-antmaze", "hrl"), CHALLENGES["pointmaze-to-antmaze"]
     assert variant.name == "pointmaze-to-antmaze-hrl" and variant.target_env == challenge.target_env
     assert variant.stages[:2] == challenge.stages[:2]  # teacher, distill
     pilot = next(stage for stage in variant.stages if stage.name == "pilot")
-    assert (pilot.lead, pilot.max_horizon, pilot.goal_scale) == (2.75, 100, 4.0)
+    assert (pilot.lead, pilot.max_horizon, pilot.goal_scale, pilot.choose_switch) == (2.75, 100, 4.0, False)
+    switch = next(stage for stage in variant.stages if stage.name == "pilot_switch")
+    assert switch.choose_switch and switch.compared_with == "unguided" and switch.env_kwargs == pilot.env_kwargs
+    from sb3_pilot.experiments.challenges import ControllerEvaluation
+
+    with pytest.raises(ValueError, match="choose_switch chooses the switch distance from a lead"):
+        ControllerEvaluation("x", "chosen", "AntMaze_UMaze-v5", None, planner="distill", choose_switch=True)
 
 
 def test_unknown_variant_refused_with_the_list(capsys: pytest.CaptureFixture[str]) -> None:

@@ -37,7 +37,7 @@ from sb3_pilot.experiments.zoo_run import (
     with_carried_env_kwargs,
     zoo_saved,
 )
-from sb3_pilot.transfer import LandmarkGuidance, horizon_for_lead
+from sb3_pilot.transfer import LandmarkGuidance, choose_guidance, horizon_for_lead
 
 
 def far_umaze_map() -> list[list[int | str]]:
@@ -143,7 +143,9 @@ def controller_episodes(model_path: Path, env: gym.Env, episodes: int, seed: int
             episode |= {"achieved_goals": env.episode_achieved_goals.tolist(), "landmarks": env.episode_landmarks.tolist()}
         played.append(episode)
     result: dict[str, Any] = {"successes": successes, "final_distances": final_distances, "episodes": played}
-    return result | ({"horizon": env.horizon} if isinstance(env, LandmarkGuidance) else {})
+    if isinstance(env, LandmarkGuidance):
+        result |= {"horizon": env.horizon, "switch_distance": env.switch_distance}
+    return result
 
 
 @dataclass(frozen=True)
@@ -173,6 +175,9 @@ class ControllerEvaluation:
     :param compared_with: the stage whose method this one is compared with in the statistics (e.g. the same
         controller unguided); None: SAC+HER, where the challenge has it. Not part of the stage's configuration
     :param max_horizon: with ``lead``, the largest ``k`` considered (a planner of small steps needs more than 10)
+    :param choose_switch: with ``lead``, ``k`` and the switch distance chosen together by
+        :func:`~sb3_pilot.transfer.choose_guidance` (the task's success radius plus the planner's offset at a goal)
+        instead of ``switch_distance``
     """
 
     name: str
@@ -189,9 +194,14 @@ class ControllerEvaluation:
     compared_with: str | None = None
     lead: float | None = None
     max_horizon: int = 10
+    choose_switch: bool = False
 
     def __post_init__(self) -> None:
         check_number(f"{self.name}: max_horizon", self.max_horizon, minimum=1, integer=True)
+        if self.choose_switch and (self.lead is None or self.switch_distance is not None):
+            raise ValueError(
+                f"{self.name}: choose_switch chooses the switch distance from a lead: give lead, not switch_distance"
+            )
         if self.lead is not None:
             check_number(f"{self.name}: lead", self.lead, minimum=0, strict=True)
             if self.planner is None:
@@ -211,6 +221,8 @@ class ControllerEvaluation:
             if self.switch_distance is None
             else f"the real goal once it is within {self.switch_distance}"
         )
+        if self.choose_switch:
+            switch = "the real goal once it is within the task's success radius plus the planner's offset at a goal"
         horizon: int | str = self.horizon if self.lead is None else f"chosen per seed: the landmark ~{self.lead} ahead"
         return {"horizon": horizon, "switch_distance": self.switch_distance, "switch_rule": switch}
 
@@ -242,10 +254,15 @@ class ControllerEvaluation:
         """The lead and its largest ``k`` in the configuration only where set: the other stages' hashes stay."""
         if self.lead is None:
             return {}
-        return {"lead": self.lead} | ({} if self.max_horizon == 10 else {"max_horizon": self.max_horizon})
+        return (
+            {"lead": self.lead}
+            | ({} if self.max_horizon == 10 else {"max_horizon": self.max_horizon})
+            | ({"choose_switch": True} if self.choose_switch else {})
+        )
 
     def describe(self, ctx: StageContext, stage_dir: Path) -> str:
         horizon = f"k={self.horizon}" if self.lead is None else f"k for a lead of {self.lead}"
+        horizon += ", the switch from the success radius" if self.choose_switch else ""
         guide = "unguided" if self.planner is None else f"guided by {self.planner} ({horizon})"
         return f"{self.controller} on {self.env_id}, {guide}, {self.n_episodes(ctx)} episodes"
 
@@ -263,10 +280,14 @@ class ControllerEvaluation:
         planner = GoalPlanner.load(ctx.outputs[self.planner])
         if self.goal_scale is not None:
             share_goal_space(str(planner.source_task), self.env_id, goal_map=GoalMap(self.goal_scale))
-        horizon = self.horizon
-        if self.lead is not None:
+        horizon, switch_distance = self.horizon, self.switch_distance
+        if self.choose_switch:
+            assert self.lead is not None  # checked when the stage was made
+            settings = choose_guidance(task, planner, self.lead, max_horizon=self.max_horizon)
+            horizon, switch_distance = settings.horizon, settings.switch_distance
+        elif self.lead is not None:
             horizon = horizon_for_lead(task, planner, self.lead, max_horizon=self.max_horizon)
-        return LandmarkGuidance(task, planner, horizon=horizon, switch_distance=self.switch_distance)
+        return LandmarkGuidance(task, planner, horizon=horizon, switch_distance=switch_distance)
 
     def run(self, ctx: StageContext, stage_dir: Path) -> None:
         """Run the controller for :meth:`n_episodes` episodes (deterministic actions)."""

@@ -309,7 +309,9 @@ def _umaze_evaluations(
     :param controller: the controller's stage
     :param controller_algo: its zoo algorithm (None: from its zoo run folder)
     :param ant: options of the three tasks that choose the Ant (``{"xml_file": ...}``; None: gymnasium-robotics')
-    :param guidance: the guided evaluation's ``horizon`` or ``lead`` (:class:`ControllerEvaluation`'s; none: k = 12)
+    :param guidance: the guided evaluation's ``horizon`` or ``lead`` (:class:`ControllerEvaluation`'s; none: k = 12);
+        with a ``lead``, a second guided evaluation (``pilot_switch``) chooses ``k`` and the switch to the real goal
+        together (``choose_switch``)
     """
     ant = ant or {}
     # the far start and goal; success: gymnasium-robotics' (within 0.45), the episode ending there; the controller's
@@ -320,7 +322,29 @@ def _umaze_evaluations(
     # challenge's seed-0 planner plans 0.10 a step (k = 3: 0.31; k = 12: 1.23; python -m
     # benchmarks.landmark_lead); the switch rule is Zero-shot Ant-Maze's
     guidance = guidance or {"horizon": 12}
+    # the switch chosen from the planner and the success radius (sb3_pilot.transfer.choose_guidance), beside the
+    # default rule: added to the hrl variant after its seed 0, where 2 of 14 guided failures stopped on a landmark
+    # 0.47 and 0.61 from the goal (the default rule never showed it); the verdict stays the `pilot` stage's
+    switched: tuple[ControllerEvaluation, ...] = ()
+    if "lead" in guidance:
+        switched = (
+            ControllerEvaluation(
+                "pilot_switch",
+                controller,
+                "AntMaze_UMaze-v5",
+                "PILoT zero-shot, switch from the planner and the success radius (0 U-maze steps)",
+                planner="distill",
+                env_kwargs=far,
+                goal_scale=4.0,
+                episodes=30,
+                controller_algo=controller_algo,
+                compared_with="unguided",
+                choose_switch=True,
+                **guidance,
+            ),
+        )
     return (
+        *switched,
         ControllerEvaluation(
             "pilot",
             controller,
@@ -390,7 +414,15 @@ def _pointmaze_to_antmaze_stages(checkpoints: int, ant: dict[str, Any] | None = 
 
 
 #: The smoke budget of ``pointmaze-to-antmaze`` and its variants
-_UMAZE_SMOKE = {"teacher": 600, "controller": 500, "chosen": 50, "pilot": 50, "unguided": 50, "open_ground": 50}
+_UMAZE_SMOKE = {
+    "teacher": 600,
+    "controller": 500,
+    "chosen": 50,
+    "pilot": 50,
+    "pilot_switch": 50,
+    "unguided": 50,
+    "open_ground": 50,
+}
 
 
 CHALLENGES: dict[str, Challenge] = {
