@@ -1,4 +1,5 @@
-"""One-way imports between the package's folders: the tasks and the pixel agents stand on the argument checks alone."""
+"""One-way imports between the package's folders: the tasks and the pixel agents stand on the leaf modules alone (the
+argument checks, the optimizer settings), which import nothing of the package."""
 
 import ast
 from pathlib import Path
@@ -6,6 +7,8 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "sb3_pilot"
+#: The package's leaf modules: any module may import them.
+LEAVES = ("sb3_pilot.checks", "sb3_pilot.optimizers")
 
 
 def package_imports(path: Path) -> set[str]:
@@ -23,8 +26,13 @@ def package_imports(path: Path) -> set[str]:
 def test_folder_imports_only_itself_and_the_checks(folder: str, allowed: tuple[str, ...]) -> None:
     """No arrow from envs/ (or pixels/) up into common/ or any other folder: only their own modules and the checks."""
     for path in sorted((PACKAGE / folder).glob("*.py")):
-        foreign = {name for name in package_imports(path) if name != "sb3_pilot.checks" and not name.startswith(allowed)}
+        foreign = {name for name in package_imports(path) if name not in LEAVES and not name.startswith(allowed)}
         assert not foreign, f"{path.name} imports {sorted(foreign)}"
+
+
+def test_the_leaves_import_nothing_of_the_package() -> None:
+    for name in LEAVES:
+        assert not package_imports(PACKAGE.parent / f"{name.replace('.', '/')}.py"), name
 
 
 def test_the_sac_core_knows_no_pixel_policy() -> None:

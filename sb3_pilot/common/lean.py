@@ -53,22 +53,6 @@ def soft_update(params: list[th.Tensor], target_params: list[th.Tensor], tau: fl
             th._foreach_lerp_(target_params, params, tau)
 
 
-def lean_optimizer_kwargs(
-    optimizer_class: type[th.optim.Optimizer], optimizer_kwargs: dict[str, Any] | None
-) -> dict[str, Any]:
-    """
-    Optimizer keyword arguments of the lean update: Adam (and AdamW) fused into one kernel per step (``fused=True``)
-    unless ``optimizer_kwargs`` sets ``fused`` or ``foreach``; other optimizers keep their arguments.
-
-    :param optimizer_class: the optimizer class
-    :param optimizer_kwargs: the user's keyword arguments (None: none)
-    """
-    optimizer_kwargs = dict(optimizer_kwargs or {})
-    if issubclass(optimizer_class, (th.optim.Adam, th.optim.AdamW)) and not {"fused", "foreach"} & set(optimizer_kwargs):
-        optimizer_kwargs["fused"] = True
-    return optimizer_kwargs
-
-
 def set_training_flags(modules: list[nn.Module], mode: bool) -> None:
     """
     What ``nn.Module.train(mode)`` does to each module of a flat list, without its per-call recursion and

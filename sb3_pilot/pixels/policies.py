@@ -23,7 +23,7 @@ from stable_baselines3.sac.policies import Actor, SACPolicy
 from torch import nn
 
 from sb3_pilot.checks import check_number
-from sb3_pilot.common.lean import lean_optimizer_kwargs
+from sb3_pilot.optimizers import lean_optimizer_kwargs
 from sb3_pilot.pixels.encoder import ACHIEVED_KEY, GOAL_KEY, PixelGoalExtractor, RandomShift
 
 

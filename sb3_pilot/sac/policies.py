@@ -9,7 +9,8 @@ from stable_baselines3.common.type_aliases import Schedule
 from stable_baselines3.sac.policies import SACPolicy
 
 from sb3_pilot.common.critics import EnsembleCritic
-from sb3_pilot.common.lean import lean_optimizer_kwargs, set_training_flags
+from sb3_pilot.common.lean import set_training_flags
+from sb3_pilot.optimizers import lean_optimizer_kwargs
 
 
 class LeanSACPolicy(SACPolicy):

@@ -29,7 +29,8 @@ from sb3_pilot.common.distributions import (
     squashed_gaussian_log_prob,
     squashed_gaussian_sample,
 )
-from sb3_pilot.common.lean import lean_optimizer_kwargs, set_training_flags
+from sb3_pilot.common.lean import set_training_flags
+from sb3_pilot.optimizers import lean_optimizer_kwargs
 
 #: Planner states are observations without this key (the target goal ``g`` conditions ``h``, it is not planned).
 DESIRED_GOAL = "desired_goal"
