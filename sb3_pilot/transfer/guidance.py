@@ -145,7 +145,11 @@ def horizon_for_lead(
     :return: ``k`` (ties to the smaller)
     """
     check_number("lead", lead, minimum=0, strict=True)
-    leads = landmark_leads(env, planner, max_horizon=max_horizon, episodes=episodes)
+    return _closest_horizon(landmark_leads(env, planner, max_horizon=max_horizon, episodes=episodes), lead)
+
+
+def _closest_horizon(leads: np.ndarray, lead: float) -> int:
+    """The ``k`` (from 1) of the lead in ``leads`` closest to ``lead``, ties to the smaller."""
     return int(np.argmin(np.abs(leads - lead))) + 1
 
 
@@ -247,6 +251,6 @@ def choose_guidance(
     radius = success_radius(env) if radius is None else radius
     check_number("radius", radius, minimum=0)
     leads = landmark_leads(env, planner, max_horizon=max_horizon, episodes=episodes)
-    horizon = int(np.argmin(np.abs(leads - lead))) + 1
+    horizon = _closest_horizon(leads, lead)
     bias = goal_bias(env, planner, horizon, episodes=episodes)
     return GuidanceSettings(horizon, radius + bias, leads, bias, radius)

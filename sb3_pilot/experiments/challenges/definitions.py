@@ -325,39 +325,35 @@ def _umaze_evaluations(
     # the switch chosen from the planner and the success radius (sb3_pilot.transfer.choose_guidance), beside the
     # default rule: added to the hrl variant after its seed 0, where 2 of 14 guided failures stopped on a landmark
     # 0.47 and 0.61 from the goal (the default rule never showed it); the verdict stays the `pilot` stage's
-    switched: tuple[ControllerEvaluation, ...] = ()
-    if "lead" in guidance:
-        switched = (
-            ControllerEvaluation(
-                "pilot_switch",
-                controller,
-                "AntMaze_UMaze-v5",
-                "PILoT zero-shot, switch from the planner and the success radius (0 U-maze steps)",
-                planner="distill",
-                env_kwargs=far,
-                goal_scale=4.0,
-                episodes=30,
-                controller_algo=controller_algo,
-                compared_with="unguided",
+    pilot = ControllerEvaluation(
+        "pilot",
+        controller,
+        "AntMaze_UMaze-v5",
+        "PILoT zero-shot (0 U-maze steps)",
+        planner="distill",
+        env_kwargs=far,
+        goal_scale=4.0,
+        episodes=30,
+        controller_algo=controller_algo,
+        compared_with="unguided",
+        **guidance,
+    )
+    # with a lead, the same guidance with k and the switch chosen together (choose_guidance) beside it
+    switched = (
+        (
+            dataclasses.replace(
+                pilot,
+                name="pilot_switch",
+                method="PILoT zero-shot, switch from the planner and the success radius (0 U-maze steps)",
                 choose_switch=True,
-                **guidance,
             ),
         )
+        if "lead" in guidance
+        else ()
+    )
     return (
         *switched,
-        ControllerEvaluation(
-            "pilot",
-            controller,
-            "AntMaze_UMaze-v5",
-            "PILoT zero-shot (0 U-maze steps)",
-            planner="distill",
-            env_kwargs=far,
-            goal_scale=4.0,
-            episodes=30,
-            controller_algo=controller_algo,
-            compared_with="unguided",
-            **guidance,
-        ),
+        pilot,
         ControllerEvaluation(
             "unguided",
             controller,
