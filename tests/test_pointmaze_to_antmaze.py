@@ -197,12 +197,44 @@ def test_hrl_variant_is_the_literatures_ant_in_every_task() -> None:
         ControllerEvaluation("x", "chosen", "AntMaze_UMaze-v5", None, planner="distill", choose_switch=True)
 
 
+def test_medium_variant_shares_the_hrl_controllers(tmp_path: Path) -> None:
+    """``--variant hrl-medium``: the teacher on PointMaze_Medium-v3, the literature's Ant guided on AntMaze_Medium-v5's
+    own cells as the guide command guides (k and the switch chosen together); its controller stages hash as the hrl
+    variant's, so the hrl variant's finished controllers serve it."""
+    from sb3_pilot.experiments.challenges import challenge_variant
+    from sb3_pilot.experiments.challenges.definitions import BUDGETS
+    from sb3_pilot.experiments.challenges.runner import context_kwargs, stage_tasks
+
+    hrl, medium = (challenge_variant("pointmaze-to-antmaze", name) for name in ("hrl", "hrl-medium"))
+    assert _ant_tasks("pointmaze-to-antmaze", "hrl-medium") == dict.fromkeys(
+        ["controller", "pilot", "unguided", "open_ground"], "hrl"
+    )
+    teacher = medium.stages[0]
+    assert (teacher.env_id, medium.target_env) == ("PointMaze_Medium-v3", "AntMaze_Medium-v5")
+    pilot = next(stage for stage in medium.stages if stage.name == "pilot")
+    assert pilot.choose_switch and (pilot.lead, pilot.max_horizon, pilot.goal_scale) == (2.75, 100, 4.0)
+    assert "maze_map" not in pilot.env_kwargs and pilot.env_kwargs["continuing_task"] is False
+    hashes = [
+        {
+            key: task.digest
+            for key, task in stage_tasks(c, [0, 1], tmp_path / c.name, context_kwargs(c, BUDGETS["cpu"])).items()
+        }
+        for c in (hrl, medium)
+    ]
+    for key in ("seed_0/controller", "seed_1/chosen", "seed_1/open_ground"):
+        assert hashes[0][key] == hashes[1][key]
+    assert hashes[0]["seed_0/teacher"] != hashes[1]["seed_0/teacher"]
+
+
 def test_unknown_variant_refused_with_the_list(capsys: pytest.CaptureFixture[str]) -> None:
     from sb3_pilot.experiments.challenges.__main__ import main
 
     with pytest.raises(SystemExit):
         main(["pointmaze-to-antmaze", "--variant", "d4rl", "--dry-run"])
-    assert "no variant 'd4rl'; the variants: pointmaze-to-antmaze --variant hrl" in capsys.readouterr().err
+    assert (
+        "no variant 'd4rl'; the variants: pointmaze-to-antmaze --variant hrl, pointmaze-to-antmaze --variant hrl-medium"
+        in capsys.readouterr().err
+    )
     with pytest.raises(SystemExit):
         main(["maze-car", "--variant", "hrl", "--dry-run"])
     assert "maze-car has no variant 'hrl'" in capsys.readouterr().err

@@ -363,34 +363,85 @@ def _umaze_evaluations(
             episodes=30,
             controller_algo=controller_algo,
         ),
-        # the controller's own task, for scale: open-arena goals of AntMaze_Open-v5 (not a compared method)
-        ControllerEvaluation(
-            "open_ground",
-            controller,
-            "AntMaze_Open-v5",
-            None,
-            env_kwargs={"continuing_task": False, "include_cfrc_ext_in_observation": False, **ant},
-            episodes=30,
-            controller_algo=controller_algo,
-        ),
+        _open_ground(controller, controller_algo, ant),
     )
 
 
-def _pointmaze_to_antmaze_stages(checkpoints: int, ant: dict[str, Any] | None = None, **guidance: Any) -> tuple[Stage, ...]:
+def _open_ground(controller: str, controller_algo: str | None, ant: dict[str, Any]) -> ControllerEvaluation:
+    """The controller on its own task, for scale: open-arena goals of ``AntMaze_Open-v5`` (not a compared method)."""
+    return ControllerEvaluation(
+        "open_ground",
+        controller,
+        "AntMaze_Open-v5",
+        None,
+        env_kwargs={"continuing_task": False, "include_cfrc_ext_in_observation": False, **ant},
+        episodes=30,
+        controller_algo=controller_algo,
+    )
+
+
+def _maze_evaluations(maze: str, controller: str, ant: dict[str, Any], lead: float, max_horizon: int) -> tuple[Stage, ...]:
+    """
+    An open-arena Ant controller on ``AntMaze_<maze>-v5`` (gymnasium-robotics' own start and goal cells, drawn anew each
+    episode; an episode ends at the goal), guided by the PointMaze planner (stage ``distill``) as
+    ``python -m sb3_pilot.experiments.guide`` guides it: ``k`` for a landmark ``lead`` ahead and the switch to the real
+    goal chosen together (``choose_switch``); beside it the same controller unguided on the same episodes, and on its
+    own open arena.
+
+    :param maze: gymnasium-robotics' map name (``Medium``, ``Large``)
+    :param controller: the controller's stage
+    :param ant: options of the tasks that choose the Ant (``{"xml_file": ...}``)
+    :param lead: the landmark's lead (Ant units)
+    :param max_horizon: the largest ``k`` considered
+    """
+    env_id = f"AntMaze_{maze}-v5"
+    task = {"continuing_task": False, "include_cfrc_ext_in_observation": False, **ant}
+    return (
+        ControllerEvaluation(
+            "pilot",
+            controller,
+            env_id,
+            f"PILoT zero-shot (0 {maze}-maze steps)",
+            planner="distill",
+            env_kwargs=task,
+            goal_scale=4.0,
+            episodes=30,
+            compared_with="unguided",
+            lead=lead,
+            max_horizon=max_horizon,
+            choose_switch=True,
+        ),
+        ControllerEvaluation(
+            "unguided", controller, env_id, f"the controller unguided (0 {maze}-maze steps)", env_kwargs=task, episodes=30
+        ),
+        _open_ground(controller, None, ant),
+    )
+
+
+def _pointmaze_to_antmaze_stages(
+    checkpoints: int, ant: dict[str, Any] | None = None, maze: str = "UMaze", **guidance: Any
+) -> tuple[Stage, ...]:
     """
     ``pointmaze-to-antmaze``'s stages: the PointMaze teacher and its planner, the open-arena Ant controller, its
-    checkpoint chosen on open ground, and :func:`_umaze_evaluations`.
+    checkpoint chosen on open ground, and the evaluations (:func:`_umaze_evaluations`, :func:`_maze_evaluations`).
 
     :param checkpoints: checkpoints the controller keeps (:class:`ZooTrain`'s)
     :param ant: options of the Ant's tasks that choose the Ant (``{"xml_file": ...}``; None: gymnasium-robotics'), for
         training and evaluation alike
+    :param maze: gymnasium-robotics' map of the teacher (``PointMaze_<maze>-v3``) and of the guided task
+        (``AntMaze_<maze>-v5``); the controller's stages do not depend on it
     :param guidance: the guided evaluation's ``horizon`` or ``lead``
     """
     # the zoo's --env-kwargs replace the YAML entry's: its own, then the Ant
     controller_kwargs = {"max_episode_steps": 500, "include_cfrc_ext_in_observation": False, **ant} if ant else {}
+    evaluations = (
+        _umaze_evaluations("chosen", ant=ant, **guidance)
+        if maze == "UMaze"
+        else _maze_evaluations(maze, "chosen", ant or {}, **guidance)
+    )
     return (
         # gymnasium-robotics' own tasks under their own IDs: the teacher with sac.yml's PointMaze entry
-        ZooTrain("teacher", "sac", "PointMaze_UMaze-v3", "sac.yml"),
+        ZooTrain("teacher", "sac", f"PointMaze_{maze}-v3", "sac.yml"),
         Distill("distill", "teacher"),
         # the open-ground controller's recipe (cpu/ant_controller_upright.yml's) through wrappers, ``checkpoints``
         # checkpoints evenly spaced
@@ -405,7 +456,7 @@ def _pointmaze_to_antmaze_stages(checkpoints: int, ant: dict[str, Any] | None = 
         # the checkpoint the stages below evaluate: chosen on held-out episodes of its own open-arena task (no
         # U-maze episode), by success, ties by mean final distance
         ChooseCheckpoint("chosen", "controller", episodes=30),
-        *_umaze_evaluations("chosen", ant=ant, **guidance),
+        *evaluations,
     )
 
 
@@ -645,6 +696,20 @@ VARIANTS: dict[str, dict[str, Challenge]] = {
             "AntMaze_UMaze-v5 with that Ant, far start to far goal (0 U-maze steps), vs the same controller unguided",
             "AntMaze_UMaze-v5",
             _pointmaze_to_antmaze_stages(checkpoints=4, ant={"xml_file": ANT_XML_FILES["hrl"]}, lead=2.75, max_horizon=100),
+            steps={"smoke": _UMAZE_SMOKE, "cpu": {"teacher": 100_000, "controller": 200_000}},
+        ),
+        # issue 60's Medium pair: the hrl variant's controller stages unchanged (the same hashes: its finished
+        # controllers serve here), the teacher on PointMaze_Medium-v3 with the same recipe and budget, guided on
+        # AntMaze_Medium-v5's own cells as the guide command guides (k and the switch chosen together)
+        "hrl-medium": Challenge(
+            "pointmaze-to-antmaze-hrl-medium",
+            "SAC+HER on PointMaze_Medium-v3 -> goal planner from its steps, GoalMap(4.0) -> landmarks for the hrl "
+            "variant's controller (the literature's Ant on AntMaze_Open-v5), guided on AntMaze_Medium-v5 with that Ant, "
+            "its own start and goal cells (0 Medium-maze steps), vs the same controller unguided",
+            "AntMaze_Medium-v5",
+            _pointmaze_to_antmaze_stages(
+                checkpoints=4, ant={"xml_file": ANT_XML_FILES["hrl"]}, maze="Medium", lead=2.75, max_horizon=100
+            ),
             steps={"smoke": _UMAZE_SMOKE, "cpu": {"teacher": 100_000, "controller": 200_000}},
         ),
     },
