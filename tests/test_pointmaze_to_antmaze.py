@@ -209,8 +209,10 @@ def test_medium_variant_shares_the_hrl_controllers(tmp_path: Path) -> None:
     assert _ant_tasks("pointmaze-to-antmaze", "hrl-medium") == dict.fromkeys(
         ["controller", "pilot", "unguided", "open_ground"], "hrl"
     )
-    teacher = medium.stages[0]
+    teacher, distill = medium.stages[:2]
     assert (teacher.env_id, medium.target_env) == ("PointMaze_Medium-v3", "AntMaze_Medium-v5")
+    # the Medium teacher's rollouts: a goal that moves on once reached; the U-maze's as they were
+    assert distill.env_kwargs == {"reset_target": True} and hrl.stages[1].env_kwargs == {}
     pilot = next(stage for stage in medium.stages if stage.name == "pilot")
     assert pilot.choose_switch and (pilot.lead, pilot.max_horizon, pilot.goal_scale) == (2.75, 100, 4.0)
     assert "maze_map" not in pilot.env_kwargs and pilot.env_kwargs["continuing_task"] is False

@@ -80,6 +80,9 @@ def test_env_rebuilt_as_enjoy_does(logs: Path) -> None:
     while not isinstance(wrapped, WallMarginWrapper):
         wrapped = wrapped.env
     assert env.get_attr("spec")[0].max_episode_steps == 20
+    # options over the run's own (zoo distill --env-kwargs: the rollouts' task)
+    _, env = load_zoo_run(model_path, "sac", MAZE, env_kwargs={"max_episode_steps": 7})
+    assert env.get_attr("spec")[0].max_episode_steps == 7 and isinstance(env, VecNormalize)
     model, env = load_zoo_run(find_zoo_run(logs, "td3", MAZE), "td3", MAZE)
     assert isinstance(model, TD3) and not isinstance(env, VecNormalize)
 

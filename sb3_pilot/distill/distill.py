@@ -561,6 +561,9 @@ def stay_put_message(holdout: dict[str, float], stride: int) -> str:
         f"The distilled planner learnt nothing beyond staying put: its held-out landmarks are "
         f"{holdout['landmark_distance']:.4g} from the teacher's next goals, an untrained planner's (the agent's own "
         f"goal) {holdout['landmark_distance_untrained']:.4g}, a teacher step being {holdout['teacher_step']:.4g} "
-        f"(stride {stride}). The teacher's step is too small or too noisy to plan from where it is: distil with a "
-        "larger stride (e.g. stride=10: landmarks 10 teacher steps ahead), or train the teacher on."
+        f"(stride {stride}). The teacher's step is too small or too noisy to plan from where it is. If its goal stays "
+        "once reached (PointMaze's continuing task), most steps hover there and few start and goal pairs are seen: "
+        "distil on rollouts whose goal moves on (env=gym.make(..., reset_target=True); zoo distill --env-kwargs "
+        "reset_target:True). Else distil with a larger stride (e.g. stride=10: landmarks 10 teacher steps ahead), or "
+        "train the teacher on."
     )

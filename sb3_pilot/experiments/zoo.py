@@ -238,6 +238,14 @@ def _distill_parser(prog: str) -> argparse.ArgumentParser:
     parser.add_argument("--num-threads", type=int, default=-1, help="torch threads (-1: torch's default)")
     parser.add_argument("--verbose", type=int, default=0, choices=(0, 1))
     parser.add_argument(
+        "--env-kwargs",
+        nargs="+",
+        action=StoreDict,
+        default={},
+        help="options of the task the rollouts run in, over the run's own (e.g. reset_target:True: a PointMaze goal "
+        "that moves on once reached)",
+    )
+    parser.add_argument(
         "--distill-kwargs",
         nargs="+",
         action=StoreDict,
@@ -276,7 +284,8 @@ def _distill(argv: list[str], prog: str) -> None:
         th.set_num_threads(args.num_threads)
     print(f"Teacher: {model_path} ({args.algo})")
     buffer_size = 1 if args.labels == "rollouts" else None
-    model, env = load_zoo_run(model_path, args.algo, args.env, seed=args.seed, device=args.device, buffer_size=buffer_size)
+    options = {"seed": args.seed, "device": args.device, "buffer_size": buffer_size, "env_kwargs": args.env_kwargs}
+    model, env = load_zoo_run(model_path, args.algo, args.env, **options)
     if args.labels != "rollouts":
         model.load_replay_buffer(model_path.parent / "replay_buffer.pkl")
     try:

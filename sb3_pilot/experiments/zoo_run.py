@@ -244,7 +244,13 @@ def load_zoo_model(
 
 
 def load_zoo_run(
-    model_path: str | os.PathLike, algo: str, env_id: str, seed: int = 0, device: str = "auto", buffer_size: int | None = 1
+    model_path: str | os.PathLike,
+    algo: str,
+    env_id: str,
+    seed: int = 0,
+    device: str = "auto",
+    buffer_size: int | None = 1,
+    env_kwargs: dict[str, Any] | None = None,
 ) -> tuple[BaseAlgorithm, VecEnv]:
     """
     The model of a zoo run, with its env rebuilt as the zoo's ``enjoy`` rebuilds it (``rl_zoo3.create_test_env``): the
@@ -257,6 +263,7 @@ def load_zoo_run(
     :param seed: seed of the env
     :param device: the model's device
     :param buffer_size: the replay buffer's size (1: no room is allocated, for a model that acts only; None: the run's)
+    :param env_kwargs: task options over the run's own
     :return: the model (its env attached) and the env
     """
     from rl_zoo3 import ALGOS
@@ -271,7 +278,7 @@ def load_zoo_run(
         seed=seed,
         should_render=False,
         hyperparams=hyperparams,
-        env_kwargs=zoo_env_kwargs(model_path),
+        env_kwargs={**zoo_env_kwargs(model_path), **(env_kwargs or {})},
         vec_env_cls=DummyVecEnv,
     )
     kwargs = {} if buffer_size is None else {"buffer_size": buffer_size}

@@ -395,10 +395,14 @@ class Distill:
 
     :param name: stage name
     :param source: the teacher's :class:`ZooTrain` stage
+    :param env_kwargs: options of the task the teacher's rollouts run in, over those it trained with (e.g.
+        ``{"reset_target": True}``: a PointMaze goal that moves on once reached, so that the rollouts do not hover at
+        their goals)
     """
 
     name: str
     source: str
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
     method = None
 
     @property
@@ -410,16 +414,18 @@ class Distill:
         return stage_dir / "planner.pt"
 
     def config(self, ctx: StageContext, stage_dir: Path) -> dict[str, Any]:
-        return {"source": str(ctx.outputs[self.source]), "seed": ctx.seed, **ctx.budget.distill}
+        # the rollouts' options only where given: the other challenges' hashes stay
+        rollouts = {"env_kwargs": self.env_kwargs} if self.env_kwargs else {}
+        return {"source": str(ctx.outputs[self.source]), "seed": ctx.seed, **ctx.budget.distill, **rollouts}
 
     def describe(self, ctx: StageContext, stage_dir: Path) -> str:
         return f"distil the goal planner of {self.source}"
 
     def run(self, ctx: StageContext, stage_dir: Path) -> None:
-        """Load the teacher (with its replay buffer, if saved), distil (its rollouts on the task options it trained with),
-        save."""
+        """Load the teacher (with its replay buffer, if saved), distil (its rollouts on the task options it trained with,
+        ``env_kwargs`` over them), save."""
         model_path = ctx.outputs[self.source]
-        env_id, env_kwargs = zoo_env_id(model_path), zoo_env_kwargs(model_path)
+        env_id, env_kwargs = zoo_env_id(model_path), {**zoo_env_kwargs(model_path), **self.env_kwargs}
         register()  # the teacher's task may be gymnasium-robotics'
         teacher, _ = load_zoo_model(model_path, env=DummyVecEnv([lambda: gym.make(env_id, **env_kwargs)]))
         if (model_path.parent / "replay_buffer.pkl").is_file():  # a source trained with save_replay_buffer
