@@ -109,7 +109,12 @@ def test_frames_compressed_in_chunks_written_once(tmp_path: Path) -> None:
         assert chunk["next_observations.observation.other"].shape[0] == 3  # rows 29, 39 (episode ends) and 44
         assert chunk["observations.observation"].shape == (20, 1, 3, 40, 40)
     assert_same_buffer(model.replay_buffer, load(folder).replay_buffer, 45)
-    model.learn(30, reset_num_timesteps=False)  # 75 steps in 60 rows: wrapped around
+    # a chunk of one row: the zoo's last checkpoint one row after its periodic one (taken before the step is stored)
+    model.learn(1, reset_num_timesteps=False)
+    save_checkpoint(model, folder, SETTINGS)
+    assert [(chunk["start"], chunk["end"]) for chunk in read_checkpoint(folder)["frame_chunks"]][-1] == (45, 46)
+    assert_same_buffer(model.replay_buffer, load(folder).replay_buffer, 46)
+    model.learn(29, reset_num_timesteps=False)  # 75 steps in 60 rows: wrapped around
     save_checkpoint(model, folder, SETTINGS)
     info = read_checkpoint(folder)
     assert [(chunk["start"], chunk["end"]) for chunk in info["frame_chunks"]] == [(0, 60)]
