@@ -168,7 +168,7 @@ def test_a_stage_with_checkpoints_resumes_where_it_stopped(
 
     summary = run_challenge(RESUMABLE, "smoke", root=stopped, progress=False)
     marker = json.loads((_stage_dir(stopped) / STAGE_MARKER).read_text())
-    assert marker["resumed_from"] == resume_from
+    assert marker["resumed_from"] == summary["stages"]["seed_0/her"]["resumed_from"] == resume_from
     # the zoo loaded the checkpoint (its model, counters and buffer) before training on
     log = (_stage_dir(stopped) / STAGE_LOG).read_text()
     assert f"Resuming {run_dir} at {resume_from} env steps (of {STEPS})" in log and " --resume" in log

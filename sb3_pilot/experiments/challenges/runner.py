@@ -221,6 +221,8 @@ def summarize(
             "wall_time_s": round(marker["wall_time_s"], 1),
             "config": marker["config"],
             "progress_csv": str(csv.relative_to(out_dir)) if csv.exists() else marker.get("progress_csv"),
+            # a stage resumed from a checkpoint: its wall time is its last sitting's
+            **({"resumed_from": marker["resumed_from"]} if "resumed_from" in marker else {}),
         }
     summary = {
         "challenge": challenge.name,
