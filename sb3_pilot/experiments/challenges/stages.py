@@ -306,10 +306,17 @@ class ZooTrain:
         The stage's YAML entry (:meth:`conf_file_at`, its task's entry): the hyperparameters that the budget's and the
         stage's ``-params`` override.
 
-        :raise ValueError: when the file has no entry for the stage's task (naming the entries it has)
+        :raise ValueError: when the file is missing (e.g. a recipe written for the cpu budget only, at ``paper``) or has
+            no entry for the stage's task (naming the entries it has)
         """
         conf_file = self.conf_file_at(ctx)
         path = hyperparams_dir() / conf_file
+        if not path.is_file():
+            found = sorted(str(other.relative_to(hyperparams_dir())) for other in hyperparams_dir().rglob(self.conf_file))
+            raise ValueError(
+                f"Stage {self.name!r} reads hyperparams/{conf_file} at the {ctx.budget.name} budget: no such file "
+                f"(hyperparams/ has {', '.join(found) or 'none of that name'}: a budget that reads its folder runs it)."
+            )
         entries = _yaml_entries(path, path.stat().st_mtime_ns)
         if self.env_id not in entries:
             raise ValueError(
