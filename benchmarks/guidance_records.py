@@ -1,6 +1,8 @@
 """
 The per-seed records of a challenge's controller stages, small enough to commit (the models are not): each seed's
-checkpoint choice (``choice_seed_<k>.json``, its ``chosen/choice.json``) and its evaluations
+checkpoint choice (``choice_seed_<k>.json``, its ``chosen/choice.json``), its planner's held-out report
+(``distill_seed_<k>.json``, the ``distill`` stage's ``distill.json``: landmark distance and NLL against an untrained
+planner's, a teacher step) and its evaluations
 (``evaluations_seed_<k>.json``): per episode the success and the final distance to the goal, and for a guided one its
 length in steps and how far the agent moved in its last 200 steps (0: it stopped: a fall, a wall or a parked landmark),
 the paths left out.
@@ -47,10 +49,12 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", required=True)
     parser.add_argument("--stages", nargs="+", required=True, help="its controller evaluation stages")
     parser.add_argument("--choice", default="chosen", help="the checkpoint choice's stage")
+    parser.add_argument("--distill", default="distill", help="the planner's distillation stage")
     args = parser.parse_args()
     for seed in args.seeds:
         models = args.folder / "models" / f"seed_{seed}"
         shutil.copyfile(models / args.choice / "choice.json", args.folder / f"choice_seed_{seed}.json")
+        shutil.copyfile(models / args.distill / "distill.json", args.folder / f"distill_seed_{seed}.json")
         records = {stage: stage_record(json.loads((models / stage / "guidance.json").read_text())) for stage in args.stages}
         (args.folder / f"evaluations_seed_{seed}.json").write_text(json.dumps(records, indent=1))
         print(f"seed {seed}:", ", ".join(f"{stage} {np.mean(record['successes']):.2f}" for stage, record in records.items()))
