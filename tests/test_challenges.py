@@ -81,6 +81,13 @@ def test_unknown_challenge(tmp_path: Path) -> None:
         challenges_main(["nope"])
 
 
+def test_a_recipe_missing_at_a_budget_is_named_before_any_work(tmp_path: Path) -> None:
+    # zero-shot-ant-maze's controller recipe is written for the cpu budget only: at paper its YAML is not there
+    with pytest.raises(ValueError, match=r"hyperparams/ant_controller_upright\.yml at the paper budget: no such file .*cpu/"):
+        run_challenge("zero-shot-ant-maze", budget="paper", seeds=[0], root=tmp_path, dry_run=True)
+    assert not (tmp_path / "zero-shot-ant-maze").exists()
+
+
 def test_high_dim_action_smoke_resume_and_plots(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """UDPO source -> transferred planner vs SAC+HER, through the zoo; a rerun skips every stage."""
     challenges_main(["high-dim-action", "--budget", "smoke", "--root", str(tmp_path), "--no-progress"])

@@ -4,6 +4,7 @@ networks and optimizers, and its replay buffer (frames compressed in chunks); ba
 from __future__ import annotations
 
 import json
+import pickle
 from pathlib import Path
 from typing import Any
 
@@ -17,15 +18,16 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 from sb3_pilot.common.checkpoint import CHECKPOINT_FILE, load_checkpoint, read_checkpoint, save_checkpoint
 from sb3_pilot.pixels import PixelGoalSACPolicy
 from sb3_pilot.sac import LeanSAC
+from sb3_pilot.transfer.bonus import PREVIOUS_ACHIEVED_GOAL, PilotHerReplayBuffer
 
 SETTINGS = {"task": "image-goal", "learning_rate": 3e-4}
 
 
-def make_model(buffer_size: int = 200, seed: int = 0) -> LeanSAC:
+def make_model(buffer_size: int = 200, seed: int = 0, replay_buffer_class: type[HerReplayBuffer] = HerReplayBuffer) -> LeanSAC:
     return LeanSAC(
         PixelGoalSACPolicy,
         DummyVecEnv([ImageGoalEnv]),
-        replay_buffer_class=HerReplayBuffer,
+        replay_buffer_class=replay_buffer_class,
         buffer_size=buffer_size,
         learning_starts=20,
         batch_size=8,
@@ -107,7 +109,12 @@ def test_frames_compressed_in_chunks_written_once(tmp_path: Path) -> None:
         assert chunk["next_observations.observation.other"].shape[0] == 3  # rows 29, 39 (episode ends) and 44
         assert chunk["observations.observation"].shape == (20, 1, 3, 40, 40)
     assert_same_buffer(model.replay_buffer, load(folder).replay_buffer, 45)
-    model.learn(30, reset_num_timesteps=False)  # 75 steps in 60 rows: wrapped around
+    # a chunk of one row: the zoo's last checkpoint one row after its periodic one (taken before the step is stored)
+    model.learn(1, reset_num_timesteps=False)
+    save_checkpoint(model, folder, SETTINGS)
+    assert [(chunk["start"], chunk["end"]) for chunk in read_checkpoint(folder)["frame_chunks"]][-1] == (45, 46)
+    assert_same_buffer(model.replay_buffer, load(folder).replay_buffer, 46)
+    model.learn(29, reset_num_timesteps=False)  # 75 steps in 60 rows: wrapped around
     save_checkpoint(model, folder, SETTINGS)
     info = read_checkpoint(folder)
     assert [(chunk["start"], chunk["end"]) for chunk in info["frame_chunks"]] == [(0, 60)]
@@ -130,3 +137,28 @@ def test_resume_bad_input(tmp_path: Path) -> None:
     (folder / CHECKPOINT_FILE).write_text(json.dumps({**info, "format": 99}))
     with pytest.raises(ValueError, match="format 99"):
         load(folder)
+
+
+def test_a_pilot_buffer_resumes_reading_its_own_rows(tmp_path: Path) -> None:
+    """
+    PilotHerReplayBuffer (HER + PILoT) checkpointed and resumed: the previous achieved goals its relabelled bonuses read
+    are the resumed buffer's own rows, those written after the checkpoint included, not a copy of the buffer saved with
+    the checkpoint (which also kept the whole buffer, frames included, a second time in state.pkl).
+    """
+    model = make_model(replay_buffer_class=PilotHerReplayBuffer)
+    model.learn(45)
+    save_checkpoint(model, tmp_path / "checkpoint", SETTINGS)
+    step_folder = tmp_path / "checkpoint" / "45"
+    frames = model.replay_buffer.observations["observation"].nbytes
+    assert (step_folder / "state.pkl").stat().st_size < frames
+    resumed = load(tmp_path / "checkpoint")
+    buffer = resumed.replay_buffer
+    assert isinstance(buffer, PilotHerReplayBuffer)
+    resumed.learn(30, reset_num_timesteps=False)
+    rows = np.arange(buffer.pos)
+    stored = buffer.infos[rows, np.zeros_like(rows)][PREVIOUS_ACHIEVED_GOAL]
+    np.testing.assert_array_equal(stored, buffer.observations["achieved_goal"][rows, 0])
+    assert np.abs(stored[45:]).sum() > 0  # the rows written after the checkpoint
+    copy = pickle.loads(pickle.dumps(buffer))  # as SB3's save_replay_buffer and load_replay_buffer do
+    np.testing.assert_array_equal(copy.infos[rows, np.zeros_like(rows)][PREVIOUS_ACHIEVED_GOAL], stored)
+    assert copy.infos.buffer is copy

@@ -197,7 +197,7 @@ def test_final_eval_reads_a_rerun_stage_not_its_stale_record(tmp_path: Path) -> 
     challenge = REUSE_SHIPPED["maze-car"]
     run_dir = tmp_path / challenge.name
     run_dir.mkdir()
-    (run_dir / "summary.json").write_text(json.dumps({"challenge": challenge.name, "seeds": [0]}))
+    (run_dir / "summary.json").write_text(json.dumps({"challenge": challenge.name, "budget": "cpu", "seeds": [0]}))
     stage = next(stage for stage in challenge.stages if stage.name == "her")
     model = stage.output(run_dir / "models/seed_0/her")
     model.parent.mkdir(parents=True)

@@ -70,6 +70,6 @@ def test_resume_bad_input(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> No
 
 def test_unknown_budget_refused_with_the_list(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit):
-        challenges_main(["high-dim-action", "--budget", "cpu-image"])
+        challenges_main(["high-dim-action", "--budget", "gpu"])
     error = capsys.readouterr().err
-    assert "invalid choice: 'cpu-image'" in error and all(name in error for name in BUDGETS)
+    assert "invalid choice: 'gpu'" in error and all(name in error for name in BUDGETS)

@@ -109,7 +109,7 @@ def _save_frame_chunk(path: Path, frames: dict[str, np.ndarray], start: int, end
         if name.startswith("next_observations/") and partner is not None and partner.shape == array.shape:
             following = partner[start + 1 : end]
             same = np.zeros(rows.shape[:2], dtype=bool)
-            same[:-1] = (rows[:-1] == following).reshape(*same[:-1].shape, -1).all(axis=-1)
+            same[:-1] = (rows[:-1] == following).all(axis=tuple(range(2, rows.ndim)))  # a one-row chunk: none
             data[f"{key}.same"], data[f"{key}.other"] = same, rows[~same]
         else:
             data[key] = rows

@@ -41,7 +41,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from sb3_pilot.experiments.challenges.definitions import CHALLENGES, HER, REUSE_SHIPPED, VARIANTS
+from sb3_pilot.experiments.challenges.definitions import CHALLENGES, HER, REUSE_SHIPPED, VARIANTS, at_budget
 from sb3_pilot.experiments.challenges.runner import count_sources, describe_source, mean_curve, source_learning
 from sb3_pilot.experiments.challenges.stages import play_episodes, zoo_run_dir
 from sb3_pilot.experiments.evaluation import load_final_distances
@@ -71,7 +71,7 @@ def evaluate_final(run_dir: Path, episodes: int = 10) -> dict[str, Any]:
     """
     register()  # the zoo's ALGOS gets "udpo"
     summary = json.loads((run_dir / "summary.json").read_text())
-    challenge = BY_FOLDER[summary["challenge"]]
+    challenge = at_budget(BY_FOLDER[summary["challenge"]], summary["budget"])
     path = run_dir / FINAL_EVAL
     results: dict[str, Any] = json.loads(path.read_text()) if path.exists() else {}
     for stage in challenge.stages:
@@ -157,6 +157,7 @@ def add_statistics(run_dir: Path, reps: int = REPS) -> dict[str, Any]:
     path = run_dir / "summary.json"
     summary = json.loads(path.read_text())
     challenge = BY_FOLDER.get(summary["challenge"])
+    challenge = None if challenge is None else at_budget(challenge, summary["budget"])
     for result in summary["methods"].values():
         if result.get("sources") is None and challenge is not None:
             seeds = [run["seed"] for run in result["runs"]]

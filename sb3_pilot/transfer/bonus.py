@@ -194,3 +194,14 @@ class PilotHerReplayBuffer(LeanHerReplayBuffer):
             raise ValueError("PilotHerReplayBuffer passes the previous achieved goal itself: do not set copy_info_dict.")
         super().__init__(*args, copy_info_dict=True, **kwargs)
         self.infos = _StoredPreviousAchievedGoals(self)  # type: ignore[assignment]
+
+    def __getstate__(self) -> dict[str, Any]:
+        # the stand-in reads this buffer: pickled apart from it (a checkpoint's state), it would carry a copy of the
+        # whole buffer, frames included, and read that copy once loaded
+        state = super().__getstate__()
+        state.pop("infos", None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        super().__setstate__({key: value for key, value in state.items() if key != "infos"})
+        self.infos = _StoredPreviousAchievedGoals(self)  # type: ignore[assignment]

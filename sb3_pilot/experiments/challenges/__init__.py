@@ -9,11 +9,13 @@ process of its own, up to ``--jobs N`` at once on this machine or as Ray tasks (
 from sb3_pilot.experiments.challenges.backends import StageFailed
 from sb3_pilot.experiments.challenges.controller import ChooseCheckpoint, ControllerEvaluation
 from sb3_pilot.experiments.challenges.definitions import (
+    BUDGET_CHALLENGES,
     BUDGETS,
     CHALLENGES,
     REUSE_SHIPPED,
     VARIANTS,
     Challenge,
+    at_budget,
     challenge_variant,
     only_stages,
 )
@@ -22,6 +24,7 @@ from sb3_pilot.experiments.challenges.stages import Budget, Distill, Shipped, Zo
 
 __all__ = [
     "BUDGETS",
+    "BUDGET_CHALLENGES",
     "CHALLENGES",
     "REUSE_SHIPPED",
     "VARIANTS",
@@ -33,6 +36,7 @@ __all__ = [
     "Shipped",
     "StageFailed",
     "ZooTrain",
+    "at_budget",
     "challenge_variant",
     "format_table",
     "only_stages",

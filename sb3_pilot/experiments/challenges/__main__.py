@@ -1,5 +1,5 @@
 """
-``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|paper --seeds N|A-B|A,B,...
+``python -m sb3_pilot.experiments.challenges CHALLENGE --budget smoke|cpu|cpu-image|demo|paper --seeds N|A-B|A,B,...
 [--root runs] [--plot] [--jobs N | --backend ray [--ray-address ADDR]] [--threads T] [--keep-going]
 [--reuse-shipped | --variant NAME] [--stages NAME ...] [--no-progress] [--dry-run]``.
 
@@ -22,6 +22,7 @@ from sb3_pilot.experiments.challenges.definitions import (
     CHALLENGES,
     REUSE_SHIPPED,
     VARIANTS,
+    at_budget,
     challenge_variant,
     only_stages,
 )
@@ -143,6 +144,8 @@ def main(argv: list[str] | None = None) -> None:
             parser.error(str(error))
     else:
         challenges = [REUSE_SHIPPED[name] if args.reuse_shipped else CHALLENGES[name] for name in names]
+    # a budget's own stages (cpu-image's), before --stages picks among them
+    challenges = [at_budget(challenge, args.budget) for challenge in challenges]
     if args.stages is not None:
         try:
             challenges = [only_stages(challenge, args.stages) for challenge in challenges]

@@ -5,9 +5,10 @@ the stages it reads from), run by up to ``jobs`` processes on this machine or as
 Every stage runs in a process of its own (``python -c ...stage_process_main``): its stdout and stderr go to
 ``stage.log`` in its folder (a zoo stage's command line to ``command.txt`` too), it uses ``ctx.threads`` torch /
 OpenMP threads (1 unless told otherwise, so that N stages on N cores do not fight), it writes its marker when it
-succeeds and dies with the process that started it. After a failed stage no other starts (``keep_going``: none that
-reads from a failed stage), the stages running finish and are recorded, then :class:`StageFailed` (its key and its
-log's tail) is raised; an interrupt (Ctrl-C, SIGTERM) stops the running stages.
+succeeds and dies with the process that started it. It starts in a fresh folder, but a zoo stage that continues from
+its checkpoint (``resume_from``: the zoo's ``--resume``), which keeps its folder. After a failed stage no other starts
+(``keep_going``: none that reads from a failed stage), the stages running finish and are recorded, then
+:class:`StageFailed` (its key and its log's tail) is raised; an interrupt (Ctrl-C, SIGTERM) stops the running stages.
 
 - ``local`` (``--jobs N``): a dependency-aware submit loop over :mod:`subprocess`, at most N stages at once.
 - ``ray`` (``--backend ray [--ray-address ADDR]``): every stage a Ray task declaring ``ctx.threads`` CPUs, its
@@ -34,7 +35,15 @@ from typing import Any
 
 import cloudpickle
 
-from sb3_pilot.experiments.challenges.stages import STAGE_COMMAND, STAGE_LOG, STAGE_MARKER, Stage, StageContext, ZooTrain
+from sb3_pilot.experiments.challenges.stages import (
+    STAGE_COMMAND,
+    STAGE_LOG,
+    STAGE_MARKER,
+    STAGE_STARTED,
+    Stage,
+    StageContext,
+    ZooTrain,
+)
 
 #: The backends of :func:`~sb3_pilot.experiments.challenges.run_challenge`.
 BACKENDS = ("local", "ray")
@@ -80,6 +89,8 @@ class StageTask:
     :param config: its configuration as stored (:func:`~sb3_pilot.experiments.challenges.stages.portable`)
     :param digest: the hash of its configuration and of the stages it reads from
     :param needs: keys of the stages it reads from
+    :param resume_from: the env steps of the checkpoint in its folder that a zoo stage continues from (None: it starts
+        over in a fresh folder)
     """
 
     key: str
@@ -89,6 +100,7 @@ class StageTask:
     config: dict[str, Any]
     digest: str
     needs: tuple[str, ...]
+    resume_from: int | None = None
 
     @property
     def log(self) -> Path:
@@ -145,13 +157,14 @@ def read_marker(task: StageTask) -> dict[str, Any]:
 
 def start_stage(task: StageTask) -> subprocess.Popen:
     """
-    Start a stage's process in a fresh folder, its output to ``stage.log``, with ``ctx.threads`` threads.
+    Start a stage's process in a fresh folder (but a stage that resumes: in its own), its output to ``stage.log``, with
+    ``ctx.threads`` threads.
 
     :return: the process (it exits with 0 once the stage's marker is written)
     """
-    if task.stage_dir.exists():  # interrupted, or configured differently: start over
+    if task.stage_dir.exists() and task.resume_from is None:  # interrupted, or configured differently: start over
         shutil.rmtree(task.stage_dir)
-    task.stage_dir.mkdir(parents=True)
+    task.stage_dir.mkdir(parents=True, exist_ok=True)
     threads = str(task.ctx.threads)
     env = {**os.environ, "OMP_NUM_THREADS": threads, "MKL_NUM_THREADS": threads, "OPENBLAS_NUM_THREADS": threads}
     with task.log.open("wb") as log:
@@ -203,12 +216,19 @@ def stage_process_main() -> None:
     th.set_num_threads(task.ctx.threads)
     print(f"[{task.key}] {task.stage.describe(task.ctx, task.stage_dir)}", flush=True)
     if isinstance(task.stage, ZooTrain):
-        command = task.stage.command(task.ctx, task.stage_dir)
+        command = task.stage.command(task.ctx, task.stage_dir, resume=task.resume_from is not None)
         (task.stage_dir / STAGE_COMMAND).write_text(command + "\n")
         print(command, flush=True)
+        if task.stage.checkpoint_freq:  # the configuration its checkpoints belong to
+            (task.stage_dir / STAGE_STARTED).write_text(json.dumps({"config_hash": task.digest}) + "\n")
     start = time.perf_counter()
-    task.stage.run(task.ctx, task.stage_dir)
+    if isinstance(task.stage, ZooTrain) and task.resume_from is not None:
+        task.stage.run(task.ctx, task.stage_dir, resume=True)
+    else:
+        task.stage.run(task.ctx, task.stage_dir)
     marker = {"config_hash": task.digest, "config": task.config, "wall_time_s": time.perf_counter() - start}
+    if task.resume_from is not None:  # its wall time is this sitting's: the earlier sittings' logs are beside it
+        marker["resumed_from"] = task.resume_from
     (task.stage_dir / STAGE_MARKER).write_text(json.dumps(marker, indent=2, default=str))
 
 

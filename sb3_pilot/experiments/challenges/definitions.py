@@ -22,12 +22,16 @@ headers); ``cpu`` is sized for one long session on 2 cores (measured per seed, 1
 agents ran at 15-26 env steps/s) and High-Dim-Action on Push 69 min; Complex-Morph's
 300k-step Ant stages and Zero-shot Ant-Maze's 350k-step controller and baseline 20-45 min each); ``demo`` is ``make
 demo``'s (High-Dim-Action only, see :mod:`sb3_pilot.experiments.demo`); ``smoke`` only checks that the pipeline
-runs.
+runs. ``cpu-image`` is Vec-to-Image on Fetch-Reach-Image's verdict budget (:data:`BUDGET_CHALLENGES`, the only challenge
+it runs): the cpu budget's source and planner, then SAC + HER and HER + PILoT (displacement cosine) with the pixel recipe
+of ``hyperparams/image/`` sized for it (:data:`FETCH_IMAGE_RECIPE`), 100k env steps each (about 65 min of a core),
+checkpointed every 10k and resumed across sittings.
 
 Hyperparameters: every zoo stage reads one RL-Zoo YAML entry, its task's in ``hyperparams/<conf_dir><conf_file>``
-(``conf_dir``: ``cpu/`` at the smoke, cpu and demo budgets, none at ``paper``) or, at the budgets that read recipes
+(``conf_dir``: ``cpu/`` at the smoke, cpu, cpu-image and demo budgets, none at ``paper``) or, at the budgets that read recipes
 (all but ``paper``), in the challenge's recipe folder ``hyperparams/cpu/<recipe>/<conf_file>`` where it has that file:
-the settings measured to learn quickly on this machine, whose notes are the files' headers. One merge rule: the YAML
+the settings measured to learn quickly on this machine, whose notes are the files' headers; a stage may name its own
+folder instead (``ZooTrain.conf_dir``: ``cpu-image``'s arms read ``hyperparams/image/``). One merge rule: the YAML
 entry, then the budget's ``hyperparams`` (``smoke``'s small networks), then the stage's ``params`` (paths of earlier
 stages' outputs), ``policy_kwargs`` merged key by key (:meth:`~sb3_pilot.experiments.challenges.stages.ZooTrain.zoo_args`).
 The same entry trains outside the challenges, e.g. ``python -m sb3_pilot.experiments.zoo train --algo udpo --env
@@ -55,6 +59,8 @@ from sb3_pilot.experiments.challenges.stages import (
     ZooTrain,
 )
 
+_CPU = Budget("cpu", conf_dir="cpu/", n_evals=10, eval_episodes=10, distill={"n_samples": 50_000, "gradient_steps": 5_000})
+
 BUDGETS: dict[str, Budget] = {
     "smoke": Budget(
         "smoke",
@@ -64,9 +70,10 @@ BUDGETS: dict[str, Budget] = {
         distill={"n_samples": 1000, "gradient_steps": 100, "batch_size": 64},
         hyperparams={"learning_starts": 100, "batch_size": 32, "policy_kwargs": {"net_arch": [32, 32]}},
     ),
-    "cpu": Budget(
-        "cpu", conf_dir="cpu/", n_evals=10, eval_episodes=10, distill={"n_samples": 50_000, "gradient_steps": 5_000}
-    ),
+    "cpu": _CPU,
+    # the cpu budget for the stages that run as at cpu (a source, its planner); the stages that differ are the
+    # challenge's own at this budget (BUDGET_CHALLENGES)
+    "cpu-image": dataclasses.replace(_CPU, name="cpu-image"),
     # make demo: the cpu presets, an evaluation every tenth of a stage (High-Dim-Action's steps["demo"])
     "demo": Budget(
         "demo", conf_dir="cpu/", n_evals=10, eval_episodes=10, distill={"n_samples": 50_000, "gradient_steps": 5_000}
@@ -683,6 +690,55 @@ CHALLENGES: dict[str, Challenge] = {
         ),
     )
 }
+
+#: The pixel recipe of Vec-to-Image on Fetch-Reach-Image's verdict, sized for SAC + HER and HER + PILoT together to 100k
+#: env steps before any verdict seed (zoo_runs/fetch-image-sizing/README.md): ``hyperparams/image/``'s entries
+#: (pixel-only PixelGoalSACPolicy, NatureCNN, DrQ's random shift 4, minibatches of 64, a gradient step per 2 env steps),
+#: the target hidden from the frame and the frames drawn without multisampling (``benchmarks.image_recipe``'s ``hidden``
+#: and ``cheap``), an evaluation of 20 episodes every 5k env steps; a resumable checkpoint every 10k, so that a stage
+#: (about 65 min of a core) crosses sittings. :class:`ZooTrain` settings, each in a stage's command only where set.
+FETCH_IMAGE_RECIPE: dict[str, Any] = {
+    "conf_dir": "image/",
+    "env_kwargs": {"show_target": False, "antialias": False},
+    "eval_freq": 5000,
+    "eval_episodes": 20,
+    "checkpoint_freq": 10_000,
+}
+
+
+def _fetch_image_verdict(challenge: Challenge) -> Challenge:
+    """
+    Vec-to-Image on Fetch-Reach-Image at the ``cpu-image`` budget: the cpu budget's source and planner (their hashes
+    the same), then the two sized arms with :data:`FETCH_IMAGE_RECIPE`, 100k env steps each; the paper's similarity
+    (stage ``pilot``) was not sized and does not run.
+
+    :param challenge: ``vec-to-image``
+    """
+    arms = ("pilot_disp", "her")
+    stages = tuple(
+        dataclasses.replace(stage, **FETCH_IMAGE_RECIPE) if stage.name in arms else stage
+        for stage in challenge.stages
+        if stage.name != "pilot"
+    )
+    steps = {"source": challenge.steps["cpu"]["source"], **dict.fromkeys(arms, 100_000)}
+    return dataclasses.replace(challenge, stages=stages, steps={"cpu-image": steps})
+
+
+#: Budgets at which challenges run stages of their own (other recipes), by budget and challenge name: the challenge as
+#: it runs at that budget (the same folder). Such a budget runs these challenges only.
+BUDGET_CHALLENGES: dict[str, dict[str, Challenge]] = {
+    "cpu-image": {"vec-to-image": _fetch_image_verdict(CHALLENGES["vec-to-image"])},
+}
+
+
+def at_budget(challenge: Challenge, budget: str) -> Challenge:
+    """
+    :param challenge: a challenge
+    :param budget: a budget's name
+    :return: the challenge as it runs at ``budget``: its own stages there (:data:`BUDGET_CHALLENGES`), else itself
+    """
+    return BUDGET_CHALLENGES.get(budget, {}).get(challenge.name, challenge)
+
 
 #: ``--variant``: other settings of a challenge, each a challenge of its own (its folder ``<challenge>-<variant>``), by
 #: challenge and variant name.

@@ -204,7 +204,7 @@ def migrate_folder(out_dir: Path, challenge: Any = None, presets: PresetLookup |
     :return: the keys of the stages whose record changed
     :raise RecordMismatch: as :func:`migrate_stages`; ValueError for a challenge or budget unknown today
     """
-    from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, REUSE_SHIPPED
+    from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, REUSE_SHIPPED, at_budget
     from sb3_pilot.experiments.challenges.runner import SUMMARY, context_kwargs, stage_tasks, write_record
 
     summary = json.loads((out_dir / SUMMARY).read_text())
@@ -215,6 +215,7 @@ def migrate_folder(out_dir: Path, challenge: Any = None, presets: PresetLookup |
             f"{out_dir}: its challenge {summary['challenge']!r} at budget {summary['budget']!r} is not one of today's "
             f"(challenges: {', '.join(known)}; budgets: {', '.join(BUDGETS)})"
         )
+    challenge = at_budget(challenge, summary["budget"])  # its own stages at that budget, if it has any
     seeds = sorted({int(key.split("/")[0].removeprefix("seed_")) for key in summary["stages"]})
     tasks = stage_tasks(challenge, seeds, out_dir.resolve(), context_kwargs(challenge, BUDGETS[summary["budget"]]))
     migrated = migrate_summary(summary, tasks, presets)

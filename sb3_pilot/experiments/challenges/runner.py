@@ -21,7 +21,7 @@ except ImportError:  # Windows: no advisory locks (side-by-side runners there re
 
 from sb3_pilot.experiments.challenges.backends import BACKENDS, StageTask, run_local, run_ray
 from sb3_pilot.experiments.challenges.controller import ControllerEvaluation
-from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, HER, Challenge
+from sb3_pilot.experiments.challenges.definitions import BUDGET_CHALLENGES, BUDGETS, CHALLENGES, HER, Challenge, at_budget
 from sb3_pilot.experiments.challenges.display import RunDisplay, stage_name
 from sb3_pilot.experiments.challenges.records import config_differences
 from sb3_pilot.experiments.challenges.stages import (
@@ -29,6 +29,7 @@ from sb3_pilot.experiments.challenges.stages import (
     STAGE_COMMAND,
     STAGE_LOG,
     STAGE_MARKER,
+    STAGE_STARTED,
     Budget,
     Stage,
     StageContext,
@@ -220,6 +221,8 @@ def summarize(
             "wall_time_s": round(marker["wall_time_s"], 1),
             "config": marker["config"],
             "progress_csv": str(csv.relative_to(out_dir)) if csv.exists() else marker.get("progress_csv"),
+            # a stage resumed from a checkpoint: its wall time is its last sitting's
+            **({"resumed_from": marker["resumed_from"]} if "resumed_from" in marker else {}),
         }
     summary = {
         "challenge": challenge.name,
@@ -438,7 +441,41 @@ def plan(
             for need in graph[key]:
                 if finished.get(need, {}).get("from_summary"):
                     del finished[need]
-    return [task for key, task in todo.items() if key not in finished], finished
+    tasks = [task for key, task in todo.items() if key not in finished]
+    for task in tasks:
+        task.resume_from = resume_point(task)
+    return tasks, finished
+
+
+def resume_point(task: StageTask) -> int | None:
+    """
+    Where a stage left to run continues from: a zoo stage with resumable checkpoints
+    (:attr:`~sb3_pilot.experiments.challenges.stages.ZooTrain.checkpoint_freq`) stopped with a checkpoint in its folder,
+    started under the configuration it has now (its :data:`STAGE_STARTED`), goes on from that checkpoint.
+
+    :param task: the stage
+    :return: the checkpoint's env steps; None where the stage starts over
+    """
+    stage, started = task.stage, task.stage_dir / STAGE_STARTED
+    if not isinstance(stage, ZooTrain) or not stage.checkpoint_freq or not started.is_file():
+        return None
+    if json.loads(started.read_text()).get("config_hash") != task.digest:
+        return None
+    return stage.checkpoint_steps(task.stage_dir)
+
+
+def keep_sitting_logs(stage_dir: Path) -> None:
+    """
+    Before a stage resumes, keep the logs of the sitting that stopped (``stage.log`` and ``progress.csv``, which the
+    resumed process writes anew) beside it as ``stage.<n>.log`` and ``progress.<n>.csv``, ``n`` counting the sittings.
+
+    :param stage_dir: the stage's folder
+    """
+    log = stage_dir / STAGE_LOG
+    sitting = 1 + len(list(stage_dir.glob(f"{log.stem}.*{log.suffix}")))
+    for path in (log, stage_dir / PROGRESS_CSV):
+        if path.exists():
+            path.rename(path.with_name(f"{path.stem}.{sitting}{path.suffix}"))
 
 
 def run_challenge(
@@ -460,12 +497,17 @@ def run_challenge(
     Run (or resume) a challenge: every stage for every seed, each in a process of its own (its output in
     ``stage.log`` in its folder, a zoo stage's command line in ``command.txt``), a stage once the stages it reads from
     have finished; then write ``summary.json`` (also whenever all the stages of a seed have finished, so a long run
-    shows its results as they come). The summary does not depend on the backend nor on ``jobs``. While it runs, it
+    shows its results as they come). A stage stopped before it finished starts over, but a zoo stage with resumable
+    checkpoints, which goes on from its last (:func:`resume_point`; the earlier sittings' logs kept beside it,
+    :func:`keep_sitting_logs`). The summary does not depend on the backend nor on ``jobs``. While it runs, it
     shows the stages started and finished and, on a terminal, a live table of the running stages' env steps
     (:mod:`~sb3_pilot.experiments.challenges.display`).
 
-    :param name: a key of :data:`~sb3_pilot.experiments.challenges.CHALLENGES` (or a :class:`Challenge`)
-    :param budget: a key of :data:`~sb3_pilot.experiments.challenges.BUDGETS` or a custom :class:`Budget`
+    :param name: a key of :data:`~sb3_pilot.experiments.challenges.CHALLENGES` (its stages at ``budget``:
+        :func:`~sb3_pilot.experiments.challenges.definitions.at_budget`), or a :class:`Challenge`, run as it is
+    :param budget: a key of :data:`~sb3_pilot.experiments.challenges.BUDGETS` or a custom :class:`Budget`; a budget of
+        :data:`~sb3_pilot.experiments.challenges.definitions.BUDGET_CHALLENGES` runs only the challenges that have
+        steps at it
     :param seeds: the seeds
     :param root: output root; the challenge writes into ``<root>/<name>/``
     :param steps: env steps per stage, overriding the budget's (e.g. the demo's)
@@ -481,13 +523,23 @@ def run_challenge(
         return without running or writing anything
     :return: the summary; with ``dry_run``, ``to_run`` and ``finished``, the stages' keys
     :raise StageFailed: once the stages running have finished, when a stage failed (its name and its log's tail)
+    :raise ValueError: before any work, for bad input (an unknown challenge or budget, a budget the challenge does not
+        run at, ...)
     """
+    if isinstance(budget, str) and budget not in BUDGETS:
+        raise ValueError(f"Unknown budget {budget!r}, choose one of {list(BUDGETS)}.")
+    budget = BUDGETS[budget] if isinstance(budget, str) else budget
     if isinstance(name, Challenge):
         challenge = name
     elif name in CHALLENGES:
-        challenge = CHALLENGES[name]
+        challenge = at_budget(CHALLENGES[name], budget.name)
     else:
         raise ValueError(f"Unknown challenge {name!r}, choose one of {sorted(CHALLENGES)}.")
+    if budget.name in BUDGET_CHALLENGES and budget.name not in challenge.steps:
+        raise ValueError(
+            f"The {budget.name} budget runs {', '.join(BUDGET_CHALLENGES[budget.name])} only, with stages of their own "
+            f"at it; {challenge.name} runs at {', '.join(name for name in BUDGETS if name not in BUDGET_CHALLENGES)}."
+        )
     if backend not in BACKENDS:
         raise ValueError(f"Unknown backend {backend!r}, choose one of {list(BACKENDS)}.")
     if jobs < 1 or threads < 1:
@@ -499,7 +551,6 @@ def run_challenge(
         raise ValueError(f"seeds has repeated values: {seeds}.")
     if backend == "ray" and jobs != 1:
         raise ValueError("jobs is for the local backend: Ray runs as many stages at once as the cluster has CPUs.")
-    budget = BUDGETS[budget] if isinstance(budget, str) else budget
     out_dir = Path(root).resolve() / challenge.name
     th.set_num_threads(1)  # this process only waits for the stages' processes
     ctx_kwargs = {**context_kwargs(challenge, budget, steps), "verbose": verbose, "threads": threads}
@@ -508,8 +559,10 @@ def run_challenge(
         title = f"{challenge.name} ({budget.name} budget, seeds {seeds})"
         print(format_plan(title, tasks, markers, read_record(out_dir)))
         return {"to_run": [task.key for task in tasks], "finished": list(markers)}
-    for task in tasks:  # interrupted, or configured differently: start over (a started stage is one with a log)
-        if task.stage_dir.exists():
+    for task in tasks:  # interrupted, or configured differently: start over (a started stage is one with a log) ...
+        if task.resume_from is not None:  # ... but a stage that goes on from its checkpoint
+            keep_sitting_logs(task.stage_dir)
+        elif task.stage_dir.exists():
             shutil.rmtree(task.stage_dir)
 
     keys = list(stage_graph(challenge, seeds))
@@ -582,9 +635,9 @@ def format_plan(
 ) -> str:
     """
     What a run would do (``--dry-run``): the stages finished (recorded in ``summary.json`` where their models are
-    gone), then those to run, each with what it does, for a zoo stage its command line and, for one that a record
-    (its marker, else ``summary.json``) holds under another configuration, the fields that differ
-    (:func:`~sb3_pilot.experiments.challenges.records.config_differences`).
+    gone), then those to run, each with what it does (and the checkpoint it resumes from), for a zoo stage its command
+    line and, for one that a record (its marker, else ``summary.json``) holds under another configuration, the fields
+    that differ (:func:`~sb3_pilot.experiments.challenges.records.config_differences`).
 
     :param title: the first line's start
     :param tasks: the stages to run (:func:`plan`)
@@ -596,9 +649,10 @@ def format_plan(
         where = "; recorded in summary.json, its models gone" if marker.get("from_summary") else ""
         lines.append(f"  done  {stage_name(key)} ({marker['wall_time_s']:.0f} s{where})")
     for task in tasks:
-        lines.append(f"  run   {stage_name(task.key)}: {task.stage.describe(task.ctx, task.stage_dir)}")
+        resumes = "" if task.resume_from is None else f", resumed from its checkpoint at {task.resume_from} env steps"
+        lines.append(f"  run   {stage_name(task.key)}: {task.stage.describe(task.ctx, task.stage_dir)}{resumes}")
         if isinstance(task.stage, ZooTrain):
-            lines.append(f"        {task.stage.command(task.ctx, task.stage_dir)}")
+            lines.append(f"        {task.stage.command(task.ctx, task.stage_dir, resume=task.resume_from is not None)}")
         marker_path = task.stage_dir / STAGE_MARKER
         recorded = (record or {}).get("stages", {}).get(task.key)
         recorded = json.loads(marker_path.read_text()) if marker_path.exists() else recorded

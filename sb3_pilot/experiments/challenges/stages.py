@@ -9,9 +9,10 @@ controller (its checkpoint's choice, its evaluation guided or not) are in
 Each stage writes into its own folder ``<root>/<challenge>/models/seed_<k>/<stage>/`` (``models/`` is gitignored)
 and, when it has finished, a marker ``stage.json`` holding the hash of its configuration (its settings and preset,
 its budget and the hashes of the stages it reads from). A stage whose marker matches is skipped on the next run; one without
-(interrupted) or with another hash is removed and run again. Each stage runs in a process of its own whose output goes to
-``stage.log`` in its folder, a zoo stage's whole command line to ``command.txt`` beside it
-(:mod:`sb3_pilot.experiments.challenges.backends`).
+(interrupted) or with another hash is removed and run again, but a zoo stage that keeps resumable checkpoints
+(:attr:`ZooTrain.checkpoint_freq`): stopped with one in its folder under the same hash, it continues from it (the zoo's
+``--resume``). Each stage runs in a process of its own whose output goes to ``stage.log`` in its folder, a zoo stage's
+whole command line to ``command.txt`` beside it (:mod:`sb3_pilot.experiments.challenges.backends`).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+from sb3_pilot.common.checkpoint import CHECKPOINT_FILE
 from sb3_pilot.common.utils import check_number
 from sb3_pilot.distill import distill_goal_planner
 from sb3_pilot.experiments.evaluation import load_final_distances
@@ -47,6 +49,7 @@ from sb3_pilot.experiments.zoo_run import (  # noqa: F401
     zoo_env_id,
     zoo_env_kwargs,
 )
+from sb3_pilot.experiments.zoo_shim import PilotExperimentManager
 
 #: Marker a finished stage leaves in its folder.
 STAGE_MARKER = "stage.json"
@@ -54,6 +57,9 @@ STAGE_MARKER = "stage.json"
 STAGE_LOG = "stage.log"
 #: A zoo stage's command line, in its folder.
 STAGE_COMMAND = "command.txt"
+#: What a zoo stage with resumable checkpoints writes in its folder when it starts: its configuration hash, so that a
+#: later run continues it only under the same configuration (:attr:`ZooTrain.checkpoint_freq`).
+STAGE_STARTED = "started.json"
 #: What SB3's logger writes in a zoo stage's folder while it trains (:class:`CSVLogger`), env steps included.
 PROGRESS_CSV = "progress.csv"
 #: Hyperparameters of a zoo stage computed from the outputs of earlier stages (``{stage name: path}``).
@@ -237,7 +243,7 @@ class ZooTrain:
     :param algo: zoo algorithm (``udpo``, ``sac``)
     :param env_id: task
     :param conf_file: YAML in ``hyperparams/`` (:meth:`conf_file_at`: the budget's ``conf_dir`` and the challenge's
-        recipe folder, where it has this file, are prepended)
+        recipe folder, where it has this file, are prepended; or the stage's own ``conf_dir``)
     :param params: ``-params`` computed from earlier stages' outputs (planner paths, transfer callbacks)
     :param needs: stages whose outputs ``params`` reads
     :param method: label in the summary if this stage is a compared method on the target task
@@ -247,6 +253,13 @@ class ZooTrain:
         empty: ``env_kwargs``), e.g. Maze2D trained on uniform goals and evaluated on the far goal
     :param checkpoints: models kept during training besides the final one, evenly spaced (the zoo's ``--save-freq``
         of ``steps // checkpoints`` env steps), for a later stage that chooses among them; 0: the final model only
+    :param conf_dir: the folder of ``hyperparams/`` that holds ``conf_file`` for this stage, ending with ``/`` (e.g.
+        ``image/``, the pixel recipe), in place of the budget's ``conf_dir`` and the challenge's recipe; None: those
+    :param eval_freq: env steps between two evaluations; 0: the budget's ``n_evals`` per stage
+    :param eval_episodes: episodes per evaluation; 0: the budget's ``eval_episodes``
+    :param checkpoint_freq: env steps between two resumable checkpoints (the zoo's ``--checkpoint-freq``: model,
+        optimizers, replay buffer); a stage stopped with one in its folder continues from it at the next run (the
+        zoo's ``--resume``) instead of starting over; 0: none
     """
 
     name: str
@@ -260,9 +273,16 @@ class ZooTrain:
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     eval_env_kwargs: dict[str, Any] = field(default_factory=dict)
     checkpoints: int = 0
+    conf_dir: str | None = None
+    eval_freq: int = 0
+    eval_episodes: int = 0
+    checkpoint_freq: int = 0
 
     def __post_init__(self) -> None:
-        check_number(f"{self.name}: checkpoints", self.checkpoints, minimum=0, integer=True)
+        for name in ("checkpoints", "eval_freq", "eval_episodes", "checkpoint_freq"):
+            check_number(f"{self.name}: {name}", getattr(self, name), minimum=0, integer=True)
+        if self.conf_dir is not None and not self.conf_dir.endswith("/"):
+            raise ValueError(f"{self.name}: conf_dir is a folder of hyperparams/ ending with '/', got {self.conf_dir!r}.")
 
     def output(self, stage_dir: Path) -> Path:
         """The trained model's zip."""
@@ -271,9 +291,12 @@ class ZooTrain:
 
     def conf_file_at(self, ctx: StageContext) -> str:
         """
-        The YAML the stage reads, relative to ``hyperparams/``: ``<conf_dir><recipe>/<conf_file>`` where the challenge's
-        recipe (read at this budget) has that file, else ``<conf_dir><conf_file>``.
+        The YAML the stage reads, relative to ``hyperparams/``: the stage's own ``<conf_dir><conf_file>`` where it names
+        a folder; else ``<conf_dir><recipe>/<conf_file>`` (the budget's ``conf_dir``) where the challenge's recipe (read
+        at this budget) has that file, else ``<conf_dir><conf_file>``.
         """
+        if self.conf_dir is not None:
+            return self.conf_dir + self.conf_file
         if ctx.recipe is not None and (hyperparams_dir() / ctx.budget.conf_dir / ctx.recipe / self.conf_file).is_file():
             return f"{ctx.budget.conf_dir}{ctx.recipe}/{self.conf_file}"
         return ctx.budget.conf_dir + self.conf_file
@@ -283,10 +306,17 @@ class ZooTrain:
         The stage's YAML entry (:meth:`conf_file_at`, its task's entry): the hyperparameters that the budget's and the
         stage's ``-params`` override.
 
-        :raise ValueError: when the file has no entry for the stage's task (naming the entries it has)
+        :raise ValueError: when the file is missing (e.g. a recipe written for the cpu budget only, at ``paper``) or has
+            no entry for the stage's task (naming the entries it has)
         """
         conf_file = self.conf_file_at(ctx)
         path = hyperparams_dir() / conf_file
+        if not path.is_file():
+            found = sorted(str(other.relative_to(hyperparams_dir())) for other in hyperparams_dir().rglob(self.conf_file))
+            raise ValueError(
+                f"Stage {self.name!r} reads hyperparams/{conf_file} at the {ctx.budget.name} budget: no such file "
+                f"(hyperparams/ has {', '.join(found) or 'none of that name'}: a budget that reads its folder runs it)."
+            )
         entries = _yaml_entries(path, path.stat().st_mtime_ns)
         if self.env_id not in entries:
             raise ValueError(
@@ -338,9 +368,12 @@ class ZooTrain:
         hyperparams["callback"] = [{f"{__name__}.CSVLogger": {"folder": str(stage_dir)}}, *callbacks]
         args = ["train", "--algo", self.algo, "--env", self.env_id, "--conf-file", conf_file, "-f", str(stage_dir)]
         args += ["--seed", str(ctx.seed), "-n", str(steps), "--num-threads", str(ctx.threads)]
-        args += ["--eval-freq", str(max(steps // ctx.budget.n_evals, 1)), "--eval-episodes", str(ctx.budget.eval_episodes)]
+        eval_freq = self.eval_freq or max(steps // ctx.budget.n_evals, 1)
+        args += ["--eval-freq", str(eval_freq), "--eval-episodes", str(self.eval_episodes or ctx.budget.eval_episodes)]
         if self.checkpoints:  # only then in the command: the other stages' hashes stay
             args += ["--save-freq", str(max(steps // self.checkpoints, 1))]
+        if self.checkpoint_freq:  # the same
+            args += ["--checkpoint-freq", str(self.checkpoint_freq)]
         args += ["-params", *(f"{key}:{zoo_text(value)}" for key, value in hyperparams.items())]
         if self.env_kwargs:
             args += ["--env-kwargs", *(f"{key}:{value!r}" for key, value in self.env_kwargs.items())]
@@ -359,18 +392,32 @@ class ZooTrain:
         """A short line for the progress display (the whole command: :meth:`command`)."""
         return f"{self.algo} on {self.env_id}, {self.env_steps(ctx)} env steps"
 
-    def command(self, ctx: StageContext, stage_dir: Path) -> str:
-        """The command line that runs the stage, as a shell would read it."""
-        return f"python -m sb3_pilot.experiments.zoo {shlex.join(self._argv(ctx, stage_dir))}"
+    def command(self, ctx: StageContext, stage_dir: Path, resume: bool = False) -> str:
+        """
+        The command line that runs the stage, as a shell would read it.
 
-    def _argv(self, ctx: StageContext, stage_dir: Path) -> list[str]:
-        return [*self.zoo_args(ctx, stage_dir), "--verbose", str(ctx.verbose)]
+        :param resume: continue from the checkpoint in ``stage_dir`` (the zoo's ``--resume``)
+        """
+        return f"python -m sb3_pilot.experiments.zoo {shlex.join(self._argv(ctx, stage_dir, resume))}"
 
-    def run(self, ctx: StageContext, stage_dir: Path) -> None:
-        """Train through the zoo (in this process)."""
+    def _argv(self, ctx: StageContext, stage_dir: Path, resume: bool = False) -> list[str]:
+        return [*self.zoo_args(ctx, stage_dir), "--verbose", str(ctx.verbose), *(["--resume"] if resume else [])]
+
+    def run(self, ctx: StageContext, stage_dir: Path, resume: bool = False) -> None:
+        """
+        Train through the zoo (in this process).
+
+        :param resume: continue from the checkpoint in ``stage_dir`` (:meth:`checkpoint_steps`)
+        """
         from sb3_pilot.experiments import zoo
 
-        zoo.main(self._argv(ctx, stage_dir))
+        zoo.main(self._argv(ctx, stage_dir, resume))
+
+    def checkpoint_steps(self, stage_dir: Path) -> int | None:
+        """The env steps of the resumable checkpoint in the stage's folder (:attr:`checkpoint_freq`), None without one."""
+        run_dir = zoo_run_dir(stage_dir, self.algo, self.env_id)
+        path = run_dir / PilotExperimentManager.CHECKPOINT_FOLDER / CHECKPOINT_FILE
+        return int(json.loads(path.read_text())["num_timesteps"]) if path.is_file() else None
 
     def curve(self, stage_dir: Path) -> tuple[list[int], list[float]]:
         """Success rate of the zoo's evaluations (``evaluations.npz``) against env steps."""
