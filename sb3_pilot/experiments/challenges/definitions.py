@@ -75,9 +75,7 @@ BUDGETS: dict[str, Budget] = {
     # challenge's own at this budget (BUDGET_CHALLENGES)
     "cpu-image": dataclasses.replace(_CPU, name="cpu-image"),
     # make demo: the cpu presets, an evaluation every tenth of a stage (High-Dim-Action's steps["demo"])
-    "demo": Budget(
-        "demo", conf_dir="cpu/", n_evals=10, eval_episodes=10, distill={"n_samples": 50_000, "gradient_steps": 5_000}
-    ),
+    "demo": dataclasses.replace(_CPU, name="demo"),
     "paper": Budget(
         "paper",
         conf_dir="",
