@@ -1,6 +1,7 @@
 """Tiny kinematic maze and trained teachers for the tests of the distillation and transfer stages."""
 
 import functools
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -133,3 +134,20 @@ def train_udpo(
         seed=seed,
     )
     return model.learn(total_timesteps)
+
+
+#: The wall test's teacher (``test_wall_maze_landmarks_go_around_the_wall``), committed: 20k steps of
+#: :func:`train_udpo` on :class:`WallMazeEnv` with UDPO's defaults, seed 2; ``python tests/maze_envs.py`` trains and
+#: saves it again (about 3 minutes on a core).
+WALL_TEACHER = Path(__file__).parent / "data" / "wall_maze_teacher.zip"
+
+
+def wall_maze_teacher() -> UDPO:
+    """The committed teacher of :data:`WALL_TEACHER`, on a :class:`WallMazeEnv`."""
+    return UDPO.load(WALL_TEACHER, env=Monitor(WallMazeEnv()))
+
+
+if __name__ == "__main__":
+    WALL_TEACHER.parent.mkdir(exist_ok=True)
+    train_udpo(WallMazeEnv, total_timesteps=20_000, seed=2, planner_coef=None).save(WALL_TEACHER)
+    print(f"saved {WALL_TEACHER}")

@@ -4,7 +4,15 @@ import numpy as np
 import pytest
 import torch as th
 from goal_envs import PointGoalEnv
-from maze_envs import WALL_GOAL, WallMazeEnv, train_udpo, wall_crossing_y, wall_detour_end, wall_landmark_path
+from maze_envs import (
+    WALL_GOAL,
+    WallMazeEnv,
+    train_udpo,
+    wall_crossing_y,
+    wall_detour_end,
+    wall_landmark_path,
+    wall_maze_teacher,
+)
 from stable_baselines3 import HerReplayBuffer
 from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
@@ -249,14 +257,15 @@ def test_wall_maze_landmarks_go_around_the_wall():
     """
     A teacher that goes around the wall, and the landmarks distilled from its real steps go around too: the path
     from (-0.5, -0.6) to (0.5, -0.6) crosses x = 0 only through the gap (y > 0, with 0.1 of slack), snapped to the
-    source's positions (the default) or not. The teacher is UDPO with its defaults (lambda 1e-4), 20k steps, seed 2;
+    source's positions (the default) or not. The teacher is UDPO with its defaults (lambda 1e-4), 20k steps, seed 2,
+    committed (``tests/maze_envs.py``'s ``WALL_TEACHER``: training it here took 3 minutes of the suite);
     the student needs the default width, a [64, 64] one cuts through the thin wall (tests/wall_maze_teacher.py).
     This tests distillation from a teacher that learnt, not how often UDPO learns: measured at 16 seeds
     (zoo_runs/sources/lambda/README.md), UDPO's defaults take this pair round the wall at 20k on 3-10 of 16 seeds (seed
     2 among them, with and without the fit bound of I's actions), SAC + HER on 15, UDPO with entropy_term="linearised"
     on 14 (not seed 2: its final model stops at the wall's end).
     """
-    model = train_udpo(WallMazeEnv, total_timesteps=20_000, seed=2, planner_coef=None)  # None: UDPO's default lambda
+    model = wall_maze_teacher()
     reached, end = wall_detour_end(model)
     assert reached, f"the teacher does not go around the wall: it ends at {end}"
 
