@@ -14,7 +14,9 @@ import yaml
 
 from sb3_pilot.experiments.challenges import CHALLENGES, format_table, only_stages, run_challenge, steps_to
 from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
+from sb3_pilot.experiments.challenges.definitions import BUDGETS
 from sb3_pilot.experiments.challenges.stages import STAGE_COMMAND, STAGE_LOG, STAGE_MARKER
+from sb3_pilot.experiments.demo import BONUS_BUDGET, BUDGET
 from sb3_pilot.experiments.demo import main as demo_main
 from sb3_pilot.experiments.plots import main as plots_main
 from sb3_pilot.transfer.state_planner import load_vec_normalize
@@ -209,8 +211,13 @@ def test_three_seeds_get_statistics(tmp_path: Path) -> None:
     assert "area gain" in format_table(summary) and "| baseline |" in format_table(summary)
 
 
-def test_demo_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """The demo's code path at a tiny budget (the real demo takes minutes)."""
+def test_demo_tiny(tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    """
+    The demo's code path at a tiny budget (the real demo takes minutes): few steps, and its budgets' evaluations made
+    smoke-sized (10 of 10 episodes a stage took most of this test's time).
+    """
+    for name in (BUDGET, BONUS_BUDGET):
+        monkeypatch.setitem(BUDGETS, name, dataclasses.replace(BUDGETS[name], n_evals=2, eval_episodes=2))
     demo_main(
         ["--root", str(tmp_path), "--source-steps", "300", "--steps", "200", "--bonus-seeds", "1", "--bonus-steps", "200"]
     )

@@ -59,8 +59,9 @@ POLL_S = 0.2
 STOP_GRACE_S = 10.0
 #: Ray's setting of its workers' niceness (a local cluster started here: 0).
 WORKER_NICENESS = "RAY_worker_niceness"
-#: What the fork server of the stage processes imports once, before it forks them (about 4 s a stage saved).
-PRELOAD = ("sb3_pilot.experiments.challenges.backends",)
+#: What the fork server of the stage processes imports once, before it forks them: this package with torch, SB3 and
+#: the zoo (about 4 s), and ``torch._dynamo``, which torch imports when a stage builds its first optimizer (2-3 s).
+PRELOAD = ("sb3_pilot.experiments.challenges.backends", "torch._dynamo")
 #: Environment variables of the thread pools; a stage gets ``ctx.threads``, the fork server 1 (its BLAS pool's size
 #: is read once, when numpy loads: a stage's numpy keeps one thread).
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
