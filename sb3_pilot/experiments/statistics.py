@@ -180,10 +180,20 @@ def _interval(scores: Any, func: Callable[..., float], seed: int, reps: int) -> 
 
 
 def iqm(scores: np.ndarray) -> float:
-    """Interquartile mean of per-seed scores (rliable's ``aggregate_iqm``)."""
-    from rliable import metrics
+    """
+    Interquartile mean of per-seed scores: rliable's ``aggregate_iqm``, SciPy's ``trim_mean(scores, IQM_CUT,
+    axis=None)``, computed as SciPy computes it (the same partition and mean, so the same floating-point result) but
+    without SciPy's checks of its arguments, which took most of a bootstrap's time (it calls this 10^4-10^5 times).
 
-    return float(metrics.aggregate_iqm(scores))
+    :param scores: the scores (flattened)
+    :return: their IQM; NaN if there are none or one is NaN (as SciPy)
+    """
+    values = np.asarray(scores).ravel()
+    if values.size == 0 or np.isnan(values).any():
+        return float("nan")
+    low = int(IQM_CUT * values.size)
+    high = values.size - low
+    return float(np.mean(np.partition(values, (low, high - 1))[low:high]))
 
 
 def method_statistics(
