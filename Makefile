@@ -17,7 +17,7 @@ demo: $(VENV)/.installed
 test: $(VENV)/.installed
 	$(VENV)/bin/ruff check sb3_pilot benchmarks tests
 	$(VENV)/bin/ruff format --check sb3_pilot benchmarks tests
-	$(PY) -m pytest -n 2 -q tests
+	$(PY) -m pytest -n 2 --dist worksteal -q tests
 	$(SPHINXBUILD)
 
 lint: $(VENV)/.installed

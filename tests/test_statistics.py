@@ -88,6 +88,25 @@ def test_iqm_of_under_four_seeds_is_the_mean() -> None:
     assert format_seeds(6, 0) == "6" and format_seeds(3, None) == "3 (sources unknown)"
 
 
+def test_iqm_is_rliables_to_the_last_bit() -> None:
+    """
+    ``iqm`` skips SciPy's per-call checks, not its arithmetic: on scores of every shape the bootstraps give it (seeds,
+    a column of them, ties, large offsets) it returns rliable's ``aggregate_iqm`` exactly, NaN where that is NaN.
+    """
+    from rliable import metrics
+
+    rng = np.random.default_rng(0)
+    for size in [*range(1, 33), 100]:
+        for scores in (
+            rng.random(size),
+            rng.integers(0, 5, size) / 4.0,  # success rates of 4 episodes: many ties
+            rng.normal(1e6, 1e3, size),
+            rng.random((size, 3)),
+        ):
+            assert iqm(scores) == float(metrics.aggregate_iqm(scores)), scores
+    assert np.isnan(iqm(np.array([0.5, np.nan, 1.0]))) and np.isnan(iqm(np.array([])))
+
+
 @pytest.mark.parametrize(
     ("seeds", "gain", "expected"),
     [(3, True, "a hint"), (4, True, "a hint"), (5, True, "confirmed"), (6, True, "confirmed"), (6, False, "no gain shown")],
