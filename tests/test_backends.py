@@ -11,6 +11,8 @@ import json
 import os
 import shutil
 import signal
+import subprocess
+import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -273,6 +275,39 @@ def test_an_interrupt_stops_the_running_stages(tmp_path: Path, importable: None)
         signal.signal(signal.SIGALRM, previous)
     assert time.monotonic() - start < 200
     assert _dead(int((stage_dir / "pid").read_text())) and not (stage_dir / STAGE_MARKER).exists()
+
+
+def _gone(pid: int) -> bool:
+    """The process has ended (a zombie not yet reaped counts as ended)."""
+    try:
+        return Path(f"/proc/{pid}/status").read_text().split("State:")[1].split()[0] == "Z"
+    except (FileNotFoundError, ProcessLookupError):
+        return True
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the kernel's parent-death signal is Linux's")
+def test_a_killed_runner_leaves_no_stage_behind(tmp_path: Path, importable: None) -> None:
+    """
+    A runner killed outright (SIGKILL: no handler of its runs): the fork server its stages were forked from ends, and
+    with it (the kernel's parent-death signal) the stage it was running.
+    """
+    pid_file = tmp_path / "tiny" / "models" / "seed_0" / "slow" / "pid"
+    code = (
+        "from test_backends import Sleep, tiny; from sb3_pilot.experiments.challenges import run_challenge; "
+        f"run_challenge(tiny(Sleep('slow', 300.0)), seeds=[0], root={str(tmp_path)!r})"
+    )
+    runner = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while not (pid_file.exists() and pid_file.read_text()) and runner.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert runner.poll() is None and pid_file.exists(), "the stage did not start"
+    stage = int(pid_file.read_text())
+    runner.kill()
+    runner.wait()
+    deadline = time.monotonic() + 30
+    while not _gone(stage) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _gone(stage), f"stage process {stage} outlived its runner"
 
 
 def test_ray_backend_matches_serial(tmp_path: Path, importable: None, capsys: pytest.CaptureFixture[str]) -> None:

@@ -20,9 +20,9 @@ its checkpoint (``resume_from``: the zoo's ``--resume``), which keeps its folder
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import json
 import multiprocessing
+import multiprocessing.connection
 import multiprocessing.forkserver
 import os
 import re
@@ -31,6 +31,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -227,6 +228,21 @@ def _context() -> multiprocessing.context.BaseContext:
     return multiprocessing.get_context("forkserver")
 
 
+#: This process's pipe for its stages (:func:`_runner_pipe`): its pid, the read end and the write end.
+_RUNNER_PIPE: tuple[int, multiprocessing.connection.Connection, multiprocessing.connection.Connection] | None = None
+
+
+def _runner_pipe() -> multiprocessing.connection.Connection:
+    """
+    The read end of a pipe that this process (a runner) keeps open and never writes to: each stage process it starts
+    gets it, and ends when it reads the pipe's end (:func:`_die_with_runner`), so that no stage outlives its runner.
+    """
+    global _RUNNER_PIPE
+    if _RUNNER_PIPE is None or _RUNNER_PIPE[0] != os.getpid():  # a forked copy of a runner makes its own
+        _RUNNER_PIPE = (os.getpid(), *multiprocessing.Pipe(duplex=False))
+    return _RUNNER_PIPE[1]
+
+
 def start_stage(task: StageTask) -> StageProcess:
     """
     Start a stage's process in a fresh folder (but a stage that resumes: in its own), its output to ``stage.log``, with
@@ -240,9 +256,8 @@ def start_stage(task: StageTask) -> StageProcess:
     task.log.write_bytes(b"")
     threads = str(task.ctx.threads)
     env = {**os.environ, **dict.fromkeys(THREAD_VARIABLES, threads)}
-    process = _context().Process(
-        target=stage_process_main, args=(cloudpickle.dumps(task), os.getcwd(), env), name=task.key, daemon=False
-    )
+    args = (cloudpickle.dumps(task), os.getcwd(), env, _runner_pipe())
+    process = _context().Process(target=stage_process_main, args=args, name=task.key, daemon=False)
     process.start()
     return StageProcess(process)
 
@@ -261,26 +276,37 @@ def stop_stages(processes: Sequence[StageProcess]) -> None:
             process.wait()
 
 
-def _die_with_parent() -> None:
-    """Linux: the kernel kills this process when its parent (the fork server) dies (no stage outlives its runner)."""
-    parent = os.getppid()
-    if sys.platform.startswith("linux"):
-        pr_set_pdeathsig = 1
-        ctypes.CDLL(None).prctl(pr_set_pdeathsig, signal.SIGKILL)
-    if os.getppid() != parent:  # the parent died before the line above
-        os._exit(1)
-
-
-def stage_process_main(task_bytes: bytes, cwd: str, env: dict[str, str]) -> None:
+def _die_with_runner(runner: multiprocessing.connection.Connection) -> None:
     """
-    The process of one stage: its output to its log, the runner's working folder and environment, then run it and
-    write its marker.
+    End this process (SIGKILL) once its runner has ended, however it ended: a thread waits on a pipe that the runner
+    never writes to and only the runner holds open, whose end it sees when the runner's process is gone. (Neither the
+    fork server, which lives while its children do, nor a parent-death signal, which would follow the fork server,
+    tells.)
+
+    :param runner: the pipe's read end (:func:`_runner_pipe`)
+    """
+
+    def watch() -> None:
+        with contextlib.suppress(EOFError, OSError):
+            runner.recv_bytes()
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    threading.Thread(target=watch, name="die-with-runner", daemon=True).start()
+
+
+def stage_process_main(
+    task_bytes: bytes, cwd: str, env: dict[str, str], runner: multiprocessing.connection.Connection
+) -> None:
+    """
+    The process of one stage: it ends with its runner; its output to its log, the runner's working folder and
+    environment; then it runs the stage and writes its marker.
 
     :param task_bytes: the :class:`StageTask`, pickled with ``cloudpickle``
     :param cwd: the runner's working folder
     :param env: the stage's environment variables
+    :param runner: the read end of the runner's pipe (:func:`_runner_pipe`)
     """
-    _die_with_parent()
+    _die_with_runner(runner)
     task: StageTask = cloudpickle.loads(task_bytes)
     log = os.open(task.log, os.O_WRONLY | os.O_APPEND)
     sys.stdout.flush()
