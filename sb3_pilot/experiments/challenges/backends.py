@@ -174,10 +174,6 @@ class StageProcess:
     def __init__(self, process: multiprocessing.process.BaseProcess) -> None:
         self.process = process
 
-    @property
-    def pid(self) -> int | None:
-        return self.process.pid
-
     def poll(self) -> int | None:
         """Its exit status (minus the signal that killed it), None while it runs."""
         return self.process.exitcode
