@@ -15,7 +15,13 @@ from image_envs import ImageGoalEnv
 from stable_baselines3 import HerReplayBuffer
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from sb3_pilot.common.checkpoint import CHECKPOINT_FILE, load_checkpoint, read_checkpoint, save_checkpoint
+from sb3_pilot.common.checkpoint import (
+    CHECKPOINT_FILE,
+    CheckpointEvery,
+    load_checkpoint,
+    read_checkpoint,
+    save_checkpoint,
+)
 from sb3_pilot.pixels import PixelGoalSACPolicy
 from sb3_pilot.sac import LeanSAC
 from sb3_pilot.transfer.bonus import PREVIOUS_ACHIEVED_GOAL, PilotHerReplayBuffer
@@ -119,6 +125,27 @@ def test_frames_compressed_in_chunks_written_once(tmp_path: Path) -> None:
     info = read_checkpoint(folder)
     assert [(chunk["start"], chunk["end"]) for chunk in info["frame_chunks"]] == [(0, 60)]
     assert_same_buffer(model.replay_buffer, load(folder).replay_buffer, 60)
+
+
+def test_checkpoints_carry_the_training_time_across_processes(tmp_path: Path) -> None:
+    """
+    CheckpointEvery records the wall time training took to reach each checkpoint (``training_s``); a resumed run's
+    callback starts from its checkpoint's, so a checkpoint after a resume counts both processes; without a known
+    earlier time, none is recorded; a plain save_checkpoint records none.
+    """
+    model, folder = make_model(), tmp_path / "checkpoint"
+    first = CheckpointEvery(20, folder, SETTINGS)
+    model.learn(45, callback=first)
+    after_first = read_checkpoint(folder)
+    assert after_first["num_timesteps"] == 40 and 0 < after_first["training_s"] <= first.training_s()
+    resumed = load(folder)
+    resumed.learn(30, callback=CheckpointEvery(20, folder, SETTINGS, after_first["training_s"]), reset_num_timesteps=False)
+    after_second = read_checkpoint(folder)
+    assert after_second["num_timesteps"] == 60 and after_second["training_s"] > after_first["training_s"]
+    load(folder).learn(20, callback=CheckpointEvery(20, folder, SETTINGS, None), reset_num_timesteps=False)
+    assert read_checkpoint(folder)["num_timesteps"] == 80 and "training_s" not in read_checkpoint(folder)
+    save_checkpoint(model, folder, SETTINGS)
+    assert "training_s" not in read_checkpoint(folder)
 
 
 def test_resume_bad_input(tmp_path: Path) -> None:

@@ -141,8 +141,8 @@ def test_a_stage_with_checkpoints_resumes_where_it_stopped(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Stopped (Ctrl-C) after its first checkpoint, the stage goes on from that checkpoint at the next run, not from 0,
-    and ends with an uninterrupted run's env steps, gradient steps and evaluations; under another configuration it
-    would start over."""
+    and ends with an uninterrupted run's env steps, gradient steps and evaluations, its wall time counting both
+    sittings; under another configuration it would start over."""
     stopped = tmp_path / "stopped"
     run_dir = zoo_run_dir(_stage_dir(stopped), "sac", "Pilot/Maze2D-v0")
     checkpoint = run_dir / "checkpoint" / "checkpoint.json"
@@ -169,6 +169,9 @@ def test_a_stage_with_checkpoints_resumes_where_it_stopped(
     summary = run_challenge(RESUMABLE, "smoke", root=stopped, progress=False)
     marker = json.loads((_stage_dir(stopped) / STAGE_MARKER).read_text())
     assert marker["resumed_from"] == summary["stages"]["seed_0/her"]["resumed_from"] == resume_from
+    # its wall time: this sitting's and the first sitting's training up to the checkpoint (recorded with it)
+    earlier = marker["earlier_sittings_s"]
+    assert earlier == summary["stages"]["seed_0/her"]["earlier_sittings_s"] > 0 and marker["wall_time_s"] > earlier
     # the zoo loaded the checkpoint (its model, counters and buffer) before training on
     log = (_stage_dir(stopped) / STAGE_LOG).read_text()
     assert f"Resuming {run_dir} at {resume_from} env steps (of {STEPS})" in log and " --resume" in log

@@ -4,8 +4,9 @@ from where the first stopped, the networks, the optimizers' state, the temperatu
 buffer included. A checkpoint folder holds:
 
 - ``checkpoint.json``: the env steps it was taken at, the run's settings (a checkpoint of another task or other
-  settings is refused, naming what differs) and its files. Written last, by a rename: a process stopped while saving
-  leaves the previous checkpoint whole;
+  settings is refused, naming what differs), its files and, where the caller gives it, ``training_s``: the wall time
+  training took to reach it, summed over the processes that led to it (:class:`CheckpointEvery`). Written last, by a
+  rename: a process stopped while saving leaves the previous checkpoint whole;
 - ``<steps>/model.zip``: the model as ``model.save`` writes it; ``<steps>/state.pkl``: the random generators (torch,
   numpy, Python), the ``VecNormalize`` statistics and the replay buffer's bookkeeping; ``<steps>/replay_buffer.npz``:
   the buffer's arrays but its frames, compressed;
@@ -28,6 +29,7 @@ import os
 import pickle
 import random
 import shutil
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -175,7 +177,9 @@ def check_settings(info: dict[str, Any], settings: dict[str, Any], folder: str |
         )
 
 
-def save_checkpoint(model: OffPolicyAlgorithm, folder: str | os.PathLike, settings: dict[str, Any]) -> Path:
+def save_checkpoint(
+    model: OffPolicyAlgorithm, folder: str | os.PathLike, settings: dict[str, Any], training_s: float | None = None
+) -> Path:
     """
     Save a checkpoint of ``model`` in ``folder`` (see the module's doc), replacing the previous one there, whose frame
     chunks it reuses where the buffer has not wrapped around since.
@@ -183,6 +187,8 @@ def save_checkpoint(model: OffPolicyAlgorithm, folder: str | os.PathLike, settin
     :param model: the model (with its replay buffer)
     :param folder: the checkpoint folder (created if needed)
     :param settings: what identifies the run (JSON-able; e.g. task, algorithm, hyperparameters, seed), checked on resume
+    :param training_s: the wall time training took to reach this checkpoint, recorded as ``training_s``; None: not
+        recorded
     :return: the folder of this checkpoint's model (``folder/<steps>``)
     """
     folder = Path(folder)
@@ -226,6 +232,7 @@ def save_checkpoint(model: OffPolicyAlgorithm, folder: str | os.PathLike, settin
         "frame_names": sorted(frames),
         "frame_chunks": chunks,
         "settings": _json(settings),
+        **({} if training_s is None else {"training_s": round(training_s, 3)}),
     }
     temporary = folder / f"{CHECKPOINT_FILE}.tmp"
     temporary.write_text(json.dumps(info, indent=1) + "\n")
@@ -310,24 +317,46 @@ def load_checkpoint(
 
 class CheckpointEvery(BaseCallback):
     """
-    :func:`save_checkpoint` every ``save_freq`` calls (vector env steps) into ``folder``.
+    :func:`save_checkpoint` every ``save_freq`` calls (vector env steps) into ``folder``, each with the wall time
+    training took to reach it (:meth:`training_s`).
 
     :param save_freq: calls between two checkpoints (env steps divided by the number of envs)
     :param folder: the checkpoint folder
     :param settings: the run's settings (:func:`save_checkpoint`)
+    :param training_s: the wall time of the training before this process's, for a resumed run (its checkpoint's
+        ``training_s``); None where unknown (a checkpoint that does not record it): then none is recorded
     """
 
-    def __init__(self, save_freq: int, folder: str | os.PathLike, settings: dict[str, Any], verbose: int = 0):
+    def __init__(
+        self,
+        save_freq: int,
+        folder: str | os.PathLike,
+        settings: dict[str, Any],
+        training_s: float | None = 0.0,
+        verbose: int = 0,
+    ):
         super().__init__(verbose)
         if save_freq < 1:
             raise ValueError(f"save_freq must be at least 1, got {save_freq}.")
         self.save_freq, self.folder, self.settings = save_freq, Path(folder), settings
+        self._before, self._start = training_s, time.perf_counter()
+
+    def _on_training_start(self) -> None:
+        self._start = time.perf_counter()
+
+    def training_s(self) -> float | None:
+        """The wall time training has taken so far, earlier processes' included; None where unknown."""
+        return None if self._before is None else self._before + time.perf_counter() - self._start
+
+    def save(self) -> None:
+        """Save a checkpoint now."""
+        save_checkpoint(self.model, self.folder, self.settings, self.training_s())  # type: ignore[arg-type]
+        if self.verbose:
+            print(f"Checkpoint at {self.num_timesteps} env steps in {self.folder}")
 
     def _on_step(self) -> bool:
         if self.n_calls % self.save_freq == 0:
-            save_checkpoint(self.model, self.folder, self.settings)  # type: ignore[arg-type]
-            if self.verbose:
-                print(f"Checkpoint at {self.num_timesteps} env steps in {self.folder}")
+            self.save()
         return True
 
 

@@ -29,7 +29,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 from stable_baselines3.common.utils import get_latest_run_id
 
-from sb3_pilot.common.checkpoint import CHECKPOINT_FILE, CheckpointEvery, RestoreCounters, load_checkpoint, save_checkpoint
+from sb3_pilot.common.checkpoint import CHECKPOINT_FILE, CheckpointEvery, RestoreCounters, load_checkpoint, read_checkpoint
 from sb3_pilot.experiments.evaluation import GoalEvalCallback
 
 #: The rl_zoo3 versions whose internals this module was checked against.
@@ -117,9 +117,10 @@ class PilotExperimentManager(ExperimentManager):
 
     Made by :meth:`configured` (``train --checkpoint-freq N [--resume]``), it also keeps a resumable checkpoint of an
     off-policy run (:mod:`sb3_pilot.common.checkpoint`: model, optimizers, replay buffer with its frames compressed,
-    random generators) in ``<run folder>/checkpoint/``, every ``checkpoint_freq`` env steps and when training ends or
-    is interrupted (Ctrl-C, SIGINT); with ``resume``, it continues the latest run of the task in the log folder from
-    its checkpoint, in that folder: same counters, its ``evaluations.npz`` going on from the checkpoint's step. A
+    random generators, the training's wall time so far) in ``<run folder>/checkpoint/``, every ``checkpoint_freq``
+    env steps and when training ends or is interrupted (Ctrl-C, SIGINT); with ``resume``, it continues the latest run
+    of the task in the log folder from its checkpoint, in that folder: same counters, its ``evaluations.npz`` going on
+    from the checkpoint's step. A
     folder without a checkpoint, or a checkpoint of other settings (algorithm, task, seed, hyperparameters, env kwargs;
     ``n_timesteps`` aside, so that a resumed run may go further), is refused before training, naming the problem.
     """
@@ -200,14 +201,18 @@ class PilotExperimentManager(ExperimentManager):
                 if isinstance(callback, GoalEvalCallback):
                     callback.restore_history(model.num_timesteps)
             self.callbacks.insert(0, RestoreCounters(model, self.callbacks))  # type: ignore[arg-type]
+            training_s = read_checkpoint(self.checkpoint_folder).get("training_s")
+        else:
+            training_s = 0.0
         save_freq = max(self.checkpoint_freq // self.n_envs, 1)
-        self.callbacks.append(CheckpointEvery(save_freq, self.checkpoint_folder, self._checkpoint_settings))
+        self._checkpointing = CheckpointEvery(save_freq, self.checkpoint_folder, self._checkpoint_settings, training_s)
+        self.callbacks.append(self._checkpointing)
         return model, saved_hyperparams
 
     def save_trained_model(self, model: BaseAlgorithm) -> None:
         super().save_trained_model(model)
         if self.checkpoint_freq:  # the last checkpoint, at the end or where training was interrupted
-            save_checkpoint(model, self.checkpoint_folder, self._checkpoint_settings)  # type: ignore[arg-type]
+            self._checkpointing.save()
             print(f"Checkpoint at {model.num_timesteps} env steps in {self.checkpoint_folder}")
 
     def read_hyperparameters(self) -> tuple[dict[str, Any], dict[str, Any]]:

@@ -295,7 +295,11 @@ def stage_process_main(
 ) -> None:
     """
     The process of one stage: it ends with its runner; its output to its log, the runner's working folder and
-    environment; then it runs the stage and writes its marker.
+    environment; then it runs the stage and writes its marker, whose ``wall_time_s`` is the stage's time. A stage
+    resumed from a checkpoint (``resumed_from``, its env steps) adds to this sitting's time the wall time its training
+    took to reach the checkpoint in the earlier sittings (``earlier_sittings_s``, the checkpoint's ``training_s``;
+    what an earlier sitting trained past its last checkpoint is not counted); where the checkpoint does not record
+    it, its time is this sitting's.
 
     :param task_bytes: the :class:`StageTask`, pickled with ``cloudpickle``
     :param cwd: the runner's working folder
@@ -323,14 +327,20 @@ def stage_process_main(
         print(command, flush=True)
         if task.stage.checkpoint_freq:  # the configuration its checkpoints belong to
             (task.stage_dir / STAGE_STARTED).write_text(json.dumps({"config_hash": task.digest}) + "\n")
-    start = time.perf_counter()
+    earlier_s = None  # a resumed stage: the earlier sittings' training time to its checkpoint, where recorded
     if isinstance(task.stage, ZooTrain) and task.resume_from is not None:
-        task.stage.run(task.ctx, task.stage_dir, resume=True)
+        earlier_s = (task.stage.checkpoint(task.stage_dir) or {}).get("training_s")
+    start = time.perf_counter()
+    if isinstance(task.stage, ZooTrain):
+        task.stage.run(task.ctx, task.stage_dir, resume=task.resume_from is not None)
     else:
         task.stage.run(task.ctx, task.stage_dir)
     marker = {"config_hash": task.digest, "config": task.config, "wall_time_s": time.perf_counter() - start}
-    if task.resume_from is not None:  # its wall time is this sitting's: the earlier sittings' logs are beside it
+    if task.resume_from is not None:
         marker["resumed_from"] = task.resume_from
+        if earlier_s is not None:
+            marker["wall_time_s"] += earlier_s
+            marker["earlier_sittings_s"] = earlier_s
     (task.stage_dir / STAGE_MARKER).write_text(json.dumps(marker, indent=2, default=str))
 
 

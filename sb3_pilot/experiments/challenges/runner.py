@@ -221,8 +221,8 @@ def summarize(
             "wall_time_s": round(marker["wall_time_s"], 1),
             "config": marker["config"],
             "progress_csv": str(csv.relative_to(out_dir)) if csv.exists() else marker.get("progress_csv"),
-            # a stage resumed from a checkpoint: its wall time is its last sitting's
-            **({"resumed_from": marker["resumed_from"]} if "resumed_from" in marker else {}),
+            # a stage resumed from a checkpoint (its wall time: :func:`~.backends.stage_process_main`)
+            **{key: marker[key] for key in ("resumed_from", "earlier_sittings_s") if key in marker},
         }
     summary = {
         "challenge": challenge.name,
@@ -461,7 +461,8 @@ def resume_point(task: StageTask) -> int | None:
         return None
     if json.loads(started.read_text()).get("config_hash") != task.digest:
         return None
-    return stage.checkpoint_steps(task.stage_dir)
+    checkpoint = stage.checkpoint(task.stage_dir)
+    return None if checkpoint is None else int(checkpoint["num_timesteps"])
 
 
 def keep_sitting_logs(stage_dir: Path) -> None:

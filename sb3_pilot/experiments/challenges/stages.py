@@ -407,17 +407,21 @@ class ZooTrain:
         """
         Train through the zoo (in this process).
 
-        :param resume: continue from the checkpoint in ``stage_dir`` (:meth:`checkpoint_steps`)
+        :param resume: continue from the checkpoint in ``stage_dir`` (:meth:`checkpoint`)
         """
         from sb3_pilot.experiments import zoo
 
         zoo.main(self._argv(ctx, stage_dir, resume))
 
-    def checkpoint_steps(self, stage_dir: Path) -> int | None:
-        """The env steps of the resumable checkpoint in the stage's folder (:attr:`checkpoint_freq`), None without one."""
+    def checkpoint(self, stage_dir: Path) -> dict[str, Any] | None:
+        """
+        The resumable checkpoint in the stage's folder (:attr:`checkpoint_freq`): its ``checkpoint.json``
+        (``num_timesteps``, its env steps; ``training_s``, the training's wall time to reach it, where recorded), None
+        without one.
+        """
         run_dir = zoo_run_dir(stage_dir, self.algo, self.env_id)
         path = run_dir / PilotExperimentManager.CHECKPOINT_FOLDER / CHECKPOINT_FILE
-        return int(json.loads(path.read_text())["num_timesteps"]) if path.is_file() else None
+        return json.loads(path.read_text()) if path.is_file() else None
 
     def curve(self, stage_dir: Path) -> tuple[list[int], list[float]]:
         """Success rate of the zoo's evaluations (``evaluations.npz``) against env steps."""
