@@ -6,6 +6,7 @@ The tiny stages here record when they ran; their processes import this module (`
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import os
@@ -80,6 +81,17 @@ class Sleep:
         time.sleep(self.seconds)
         times = {"start": start, "end": time.time(), "threads": th.get_num_threads(), "omp": os.environ["OMP_NUM_THREADS"]}
         self.output(stage_dir).write_text(json.dumps(times))
+
+
+@dataclass(frozen=True)
+class ZooLike(Sleep):
+    """A :class:`Sleep` stage whose work ends normally on Ctrl-C, as the zoo's training does (it then saves the model)."""
+
+    def run(self, ctx: Any, stage_dir: Path) -> None:
+        (stage_dir / "pid").write_text(str(os.getpid()))
+        with contextlib.suppress(KeyboardInterrupt):
+            time.sleep(self.seconds)
+        self.output(stage_dir).write_text("{}")
 
 
 @dataclass(frozen=True)
@@ -285,11 +297,10 @@ def _gone(pid: int) -> bool:
         return True
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the kernel's parent-death signal is Linux's")
 def test_a_killed_runner_leaves_no_stage_behind(tmp_path: Path, importable: None) -> None:
     """
-    A runner killed outright (SIGKILL: no handler of its runs): the fork server its stages were forked from ends, and
-    with it (the kernel's parent-death signal) the stage it was running.
+    A runner killed outright (SIGKILL: no handler of its runs): the stage it was running ends too (a thread of the
+    stage's watches a pipe that only the runner holds open), although the fork server it was forked from lives on.
     """
     pid_file = tmp_path / "tiny" / "models" / "seed_0" / "slow" / "pid"
     code = (
@@ -307,6 +318,31 @@ def test_a_killed_runner_leaves_no_stage_behind(tmp_path: Path, importable: None
     deadline = time.monotonic() + 30
     while not _gone(stage) and time.monotonic() < deadline:
         time.sleep(0.1)
+    assert _gone(stage), f"stage process {stage} outlived its runner"
+
+
+def test_ctrl_c_at_a_terminal_records_no_stage_as_finished(tmp_path: Path, importable: None) -> None:
+    """
+    Ctrl-C at a terminal signals every process of the runner's group, its stages too. The zoo's training ends
+    normally on it (it saves the model), so a stage that took it would be recorded as finished after part of its
+    steps; stages leave it to their runner, which stops them: none is recorded, none is left.
+    """
+    stage_dir = tmp_path / "tiny" / "models" / "seed_0" / "slow"
+    code = (
+        "from test_backends import ZooLike, tiny; from sb3_pilot.experiments.challenges import run_challenge; "
+        f"run_challenge(tiny(ZooLike('slow', 300.0)), seeds=[0], root={str(tmp_path)!r})"
+    )
+    runner = subprocess.Popen(
+        [sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
+    deadline = time.monotonic() + 120
+    while not ((stage_dir / "pid").exists() and (stage_dir / "pid").read_text()) and time.monotonic() < deadline:
+        assert runner.poll() is None, "the runner ended before its stage started"
+        time.sleep(0.1)
+    stage = int((stage_dir / "pid").read_text())
+    os.killpg(runner.pid, signal.SIGINT)  # what a terminal's Ctrl-C does: the runner's whole group
+    assert runner.wait(timeout=120) != 0
+    assert not (stage_dir / STAGE_MARKER).exists() and not (stage_dir / "times.json").exists()
     assert _gone(stage), f"stage process {stage} outlived its runner"
 
 

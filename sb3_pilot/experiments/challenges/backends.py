@@ -294,18 +294,21 @@ def stage_process_main(
     task_bytes: bytes, cwd: str, env: dict[str, str], runner: multiprocessing.connection.Connection
 ) -> None:
     """
-    The process of one stage: it ends with its runner; its output to its log, the runner's working folder and
-    environment; then it runs the stage and writes its marker, whose ``wall_time_s`` is the stage's time. A stage
-    resumed from a checkpoint (``resumed_from``, its env steps) adds to this sitting's time the wall time its training
-    took to reach the checkpoint in the earlier sittings (``earlier_sittings_s``, the checkpoint's ``training_s``;
-    what an earlier sitting trained past its last checkpoint is not counted); where the checkpoint does not record
-    it, its time is this sitting's.
+    The process of one stage: it ends with its runner and leaves Ctrl-C (SIGINT) to it; its output to its log, the
+    runner's working folder and environment; then it runs the stage and writes its marker, whose ``wall_time_s`` is
+    the stage's time. A stage resumed from a checkpoint (``resumed_from``, its env steps) adds to this sitting's time
+    the wall time its training took to reach the checkpoint in the earlier sittings (``earlier_sittings_s``, the
+    checkpoint's ``training_s``; what an earlier sitting trained past its last checkpoint is not counted); where the
+    checkpoint does not record it, its time is this sitting's.
 
     :param task_bytes: the :class:`StageTask`, pickled with ``cloudpickle``
     :param cwd: the runner's working folder
     :param env: the stage's environment variables
     :param runner: the read end of the runner's pipe (:func:`_runner_pipe`)
     """
+    # Ctrl-C at a terminal reaches the stage too; the zoo's training would end normally on it (saving the model) and
+    # the stage be recorded as finished after part of its steps: the runner, which stops its stages, takes it alone
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _die_with_runner(runner)
     task: StageTask = cloudpickle.loads(task_bytes)
     log = os.open(task.log, os.O_WRONLY | os.O_APPEND)
