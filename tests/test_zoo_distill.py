@@ -100,7 +100,7 @@ def test_distill_writes_where_the_bonus_reads(logs: Path, algo: str, capsys: pyt
     assert planner.metadata["teacher_model"] == str(logs / algo / f"Pilot-Maze2D-v0_{exp_id}" / "Pilot-Maze2D-v0.zip")
     out = capsys.readouterr().out
     assert f"Saved the goal planner to {path}" in out
-    assert "held-out landmark distance" in out and "the teacher's rollout success" in out
+    assert "held-out landmark distance" in out and "the teacher's rollout success" in out and "steps at a goal" in out
     path.unlink()
 
 

@@ -302,6 +302,7 @@ def distillation_data(
                 "or pass allow_unsuccessful_teacher=True to distil it anyway."
             )
         observations, teacher_mean, facts["rollout_success"] = rollouts.observations, rollouts.next_goals, rollouts.success
+        facts["rollout_goal_steps"] = np.nan if rollouts.goal_steps is None else rollouts.goal_steps
         teacher_std = np.zeros_like(teacher_mean)
     else:
         assert isinstance(model, UDPO), "check_teacher refuses planned labels of other agents"
@@ -424,9 +425,11 @@ def distill_goal_planner(
 
     ``planner.metadata`` records the source task and its declared goal space (``goal_space_id``), the teacher's
     algorithm (``teacher_algorithm``), the labels, ``rollout_success`` (the success rate of the rollouts' ended
-    episodes) and ``holdout``: the student against the teacher on a held-out share of the pairs, before and after
-    training (``nll``, ``landmark_distance``, their ``*_untrained`` values, and ``teacher_step``, the mean distance from
-    ``g`` to the teacher's next goal, for scale). A student no closer to the teacher's next goals than an untrained one,
+    episodes), ``rollout_goal_steps`` (how many rollout steps reached their goal: the measure where the goal moves on
+    once reached, ``reset_target``, and an episode's last step is rarely at one) and ``holdout``: the student against
+    the teacher on a held-out share of the pairs, before and after training (``nll``, ``landmark_distance``, their
+    ``*_untrained`` values, and ``teacher_step``, the mean distance from ``g`` to the teacher's next goal, for
+    scale). A student no closer to the teacher's next goals than an untrained one,
     which stays put (``landmark_distance`` at least :data:`STAY_PUT_RATIO` of ``landmark_distance_untrained``), is
     warned about: its landmarks are the agent's own position. That is what a teacher whose one step is small against
     its spread gives (a slow agent, or one whose step follows its velocity more than its goal, as PointMaze's ball):

@@ -36,6 +36,7 @@ a zoo run back (``distill``'s teacher) is :mod:`sb3_pilot.experiments.zoo_run`.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import runpy
 import shutil
@@ -187,7 +188,8 @@ def planner_quality(metadata: dict[str, Any]) -> str:
     """
     What a goal planner's metadata says of its quality (:func:`~sb3_pilot.distill_goal_planner`'s held-out report), in
     one line: the held-out landmark distance (from the student's mean to the teacher's) beside the untrained student's
-    and the teacher's own step, the held-out NLL, and the success of the teacher's rollouts (``labels="rollouts"``).
+    and the teacher's own step, the held-out NLL, and the success of the teacher's rollouts (``labels="rollouts"``: of
+    their ended episodes, and how many of their steps were at a goal).
 
     :param metadata: ``planner.metadata``
     """
@@ -203,6 +205,9 @@ def planner_quality(metadata: dict[str, Any]) -> str:
         parts.append(f"held-out NLL {holdout['nll']:.3g} (untrained {holdout.get('nll_untrained', float('nan')):.3g})")
     if "rollout_success" in metadata:
         parts.append(f"the teacher's rollout success {metadata['rollout_success']:.2f}")
+    goal_steps = metadata.get("rollout_goal_steps")
+    if goal_steps is not None and not math.isnan(goal_steps):  # NaN: the task reports no success
+        parts.append(f"{goal_steps:.0f} rollout steps at a goal")
     return "; ".join(parts) or "no held-out report in the metadata"
 
 
