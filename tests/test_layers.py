@@ -1,5 +1,6 @@
 """One-way imports between the package's folders: the tasks and the pixel agents stand on the leaf modules alone (the
-argument checks, the optimizer settings), which import nothing of the package."""
+argument checks, the optimizer settings), which import nothing of the package; and no module imports, at any depth of
+its code, one that imports it back."""
 
 import ast
 from pathlib import Path
@@ -39,3 +40,40 @@ def test_the_sac_core_knows_no_pixel_policy() -> None:
     """The lean SAC step reaches a pixel policy through its extension point (StepHooks), never by importing it."""
     for path in [PACKAGE / "common" / "lean.py", *sorted((PACKAGE / "sac").glob("*.py"))]:
         assert not {name for name in package_imports(path) if "pixels" in name or "torch_layers" in name}, path.name
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def test_no_import_cycles() -> None:
+    """
+    No circle of imports between the package's modules, counting those inside functions (a lazy import only hides
+    one): ``from package import name`` is an arrow to ``package.name`` where that is a module, else to ``package``.
+    """
+    modules = {_module_name(path): path for path in PACKAGE.rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        targets: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                targets.update(
+                    f"{node.module}.{alias.name}" if f"{node.module}.{alias.name}" in modules else node.module
+                    for alias in node.names
+                )
+            elif isinstance(node, ast.Import):
+                targets.update(alias.name for alias in node.names)
+        graph[name] = {target for target in targets if target in modules and target != name}
+    done: set[str] = set()
+
+    def visit(module: str, path: list[str]) -> None:
+        for target in sorted(graph[module]):
+            assert target not in path, "import cycle: " + " -> ".join([*path[path.index(target) :], target])
+            if target not in done:
+                visit(target, [*path, target])
+        done.add(module)
+
+    for module in sorted(graph):
+        if module not in done:
+            visit(module, [module])

@@ -16,7 +16,8 @@ from sb3_pilot.experiments.challenges import CHALLENGES, run_challenge
 from sb3_pilot.experiments.challenges.__main__ import main as challenges_main
 from sb3_pilot.experiments.challenges.definitions import BUDGETS, REUSE_SHIPPED, VARIANTS, Challenge
 from sb3_pilot.experiments.challenges.migrate import main as migrate_main
-from sb3_pilot.experiments.challenges.records import RecordMismatch, config_differences, migrate_folder
+from sb3_pilot.experiments.challenges.migrate import migrate_folder
+from sb3_pilot.experiments.challenges.records import RecordMismatch, config_differences
 from sb3_pilot.experiments.challenges.runner import SUMMARY, context_kwargs, stage_tasks
 from sb3_pilot.experiments.challenges.stages import REPO_DIR, ZooTrain, config_hash, zoo_hyperparams, zoo_text
 from sb3_pilot.experiments.zoo import hyperparams_dir

@@ -14,10 +14,9 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Iterator
-from pathlib import Path
 from typing import Any
 
-from sb3_pilot.experiments.challenges.stages import STAGE_MARKER, ZooTrain, config_hash, zoo_hyperparams
+from sb3_pilot.experiments.challenges.stages import ZooTrain, config_hash, zoo_hyperparams
 
 
 def _fields(value: Any, path: str) -> Iterator[tuple[str, Any]]:
@@ -190,42 +189,3 @@ def migrate_summary(summary: dict[str, Any], tasks: dict[str, Any], presets: Pre
         ]
         migrated["source"] = {**summary["source"], "runs": runs}
     return migrated
-
-
-def migrate_folder(out_dir: Path, challenge: Any = None, presets: PresetLookup | None = None) -> list[str]:
-    """
-    Migrate a challenge folder's ``summary.json`` (and its stage markers, where its models are) to today's
-    configurations, each stage checked by :func:`migrate_stages`; nothing is written where one fails.
-
-    :param out_dir: ``<root>/<challenge>``
-    :param challenge: its :class:`~sb3_pilot.experiments.challenges.definitions.Challenge` (None: the one its summary
-        names, in ``CHALLENGES`` or ``REUSE_SHIPPED``)
-    :param presets: the YAML entries of records without ``preset`` (:func:`recorded_presets`)
-    :return: the keys of the stages whose record changed
-    :raise RecordMismatch: as :func:`migrate_stages`; ValueError for a challenge or budget unknown today
-    """
-    from sb3_pilot.experiments.challenges.definitions import BUDGETS, CHALLENGES, REUSE_SHIPPED, at_budget
-    from sb3_pilot.experiments.challenges.runner import SUMMARY, context_kwargs, stage_tasks, write_record
-
-    summary = json.loads((out_dir / SUMMARY).read_text())
-    known = {**CHALLENGES, **{shipped.name: shipped for shipped in REUSE_SHIPPED.values()}}
-    challenge = challenge or known.get(summary["challenge"])
-    if challenge is None or summary["budget"] not in BUDGETS:
-        raise ValueError(
-            f"{out_dir}: its challenge {summary['challenge']!r} at budget {summary['budget']!r} is not one of today's "
-            f"(challenges: {', '.join(known)}; budgets: {', '.join(BUDGETS)})"
-        )
-    challenge = at_budget(challenge, summary["budget"])  # its own stages at that budget, if it has any
-    seeds = sorted({int(key.split("/")[0].removeprefix("seed_")) for key in summary["stages"]})
-    tasks = stage_tasks(challenge, seeds, out_dir.resolve(), context_kwargs(challenge, BUDGETS[summary["budget"]]))
-    migrated = migrate_summary(summary, tasks, presets)
-    markers = {key: tasks[key].stage_dir / STAGE_MARKER for key in tasks if (tasks[key].stage_dir / STAGE_MARKER).exists()}
-    marker_records = {key: json.loads(path.read_text()) for key, path in markers.items()}
-    migrate_stages(marker_records, tasks, summary["stages"], presets)
-    changed = [key for key, entry in summary["stages"].items() if entry != migrated["stages"][key]]
-    if changed:
-        write_record(out_dir, migrated)
-    for key, path in markers.items():
-        marker = {**marker_records[key], "config_hash": tasks[key].digest, "config": tasks[key].config}
-        path.write_text(json.dumps(marker, indent=2, default=str))  # as the runner writes it
-    return changed
