@@ -379,10 +379,13 @@ def test_ray_backend_matches_serial(tmp_path: Path, importable: None, capsys: py
     assert (tmp_path / "fail" / "tiny" / "models" / "seed_0" / "slow" / STAGE_MARKER).exists()  # it finished
 
 
-def test_a_run_of_some_stages_keeps_the_others_recorded(tmp_path: Path, importable: None) -> None:
+def test_a_run_of_some_stages_keeps_the_others_recorded(
+    tmp_path: Path, importable: None, capsys: pytest.CaptureFixture[str]
+) -> None:
     """
     ``--stages`` or fewer ``--seeds`` on a run whose models are gone (a fresh clone) keep the earlier summary's records
-    of the other stages (out of the statistics), so that the whole run afterwards trains nothing again.
+    of the other stages (out of the statistics, which the run says, naming the seeds that summarize them all), so that
+    the whole run afterwards trains nothing again.
     """
     challenge = tiny(Scored("a", 0.0, method="a"), Scored("b", 0.0, method="b"))
     whole = run_challenge(challenge, seeds=[0, 1], root=tmp_path)
@@ -396,9 +399,13 @@ def test_a_run_of_some_stages_keeps_the_others_recorded(tmp_path: Path, importab
     assert set(some["stages"]) == set(whole["stages"])
     assert sorted(some["partial_runs"]) == ["seed_0/b", "seed_1/a", "seed_1/b"]
     assert some["partial_runs"]["seed_1/b"] == whole["methods"]["b"]["runs"][1]
+    assert "other seeds (1) are recorded in summary.json (partial_runs), out of this table: --seeds 0,1" in (
+        capsys.readouterr().out
+    )
     again = run_challenge(challenge, seeds=[0, 1], root=tmp_path)
     assert not list(run_dir.glob("models/seed_*/*"))  # nothing trained again
     assert again["methods"] == whole["methods"] and "partial_runs" not in again
+    assert "partial_runs" not in capsys.readouterr().out
 
 
 def test_runners_on_other_seeds_of_one_folder_keep_each_others_records(tmp_path: Path, importable: None) -> None:

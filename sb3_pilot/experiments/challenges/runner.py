@@ -628,6 +628,13 @@ def run_challenge(
     summary = save(summary)  # the statistics took seconds: read again what another runner may have recorded
     display.print("done")
     print(format_table(summary))
+    others = sorted({int(key.split("/")[0].removeprefix("seed_")) for key in summary.get("partial_runs", {})} - set(seeds))
+    if others:  # a run of some seeds: the others' finished runs are kept, out of this table and its statistics
+        every = ",".join(map(str, sorted({*seeds, *others})))
+        print(
+            f"Finished runs of other seeds ({', '.join(map(str, others))}) are recorded in summary.json (partial_runs), "
+            f"out of this table: --seeds {every} summarizes them all (their finished stages are not trained again)."
+        )
     return summary
 
 
