@@ -27,6 +27,7 @@ from sb3_pilot.experiments.challenges import (
     CHALLENGES,
     Challenge,
     StageFailed,
+    backends,
     only_stages,
     run_challenge,
     stage_graph,
@@ -346,6 +347,34 @@ def test_ctrl_c_at_a_terminal_records_no_stage_as_finished(tmp_path: Path, impor
     assert _gone(stage), f"stage process {stage} outlived its runner"
 
 
+def test_ctrl_c_as_a_stage_starts_stops_that_stage_too(
+    tmp_path: Path, importable: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """
+    Ctrl-C that comes while a stage's process is being started (forked, not yet among the running stages): the
+    runner stops it with the others instead of leaving it running (and, as a child process, waited for at exit).
+    """
+    started: list[int] = []
+    start_stage = backends.start_stage
+
+    def start_then_ctrl_c(task: Any) -> Any:
+        process = start_stage(task)
+        started.append(process.process.pid)
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(1.0)  # the signal's handler runs here, before the runner has registered the process
+        return process
+
+    monkeypatch.setattr(backends, "start_stage", start_then_ctrl_c)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_challenge(tiny(Sleep("slow", 300.0)), seeds=[0], root=tmp_path)
+        assert started and _gone(started[0]), "the stage started as Ctrl-C came was left running"
+    finally:
+        for pid in started:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+
+
 def test_ray_backend_matches_serial(tmp_path: Path, importable: None, capsys: pytest.CaptureFixture[str]) -> None:
     """
     High-Dim-Action at the smoke budget, serially and on a local Ray cluster (2 CPUs, its independent stages side by
@@ -399,7 +428,7 @@ def test_a_run_of_some_stages_keeps_the_others_recorded(
     assert set(some["stages"]) == set(whole["stages"])
     assert sorted(some["partial_runs"]) == ["seed_0/b", "seed_1/a", "seed_1/b"]
     assert some["partial_runs"]["seed_1/b"] == whole["methods"]["b"]["runs"][1]
-    assert "other seeds (1) are recorded in summary.json (partial_runs), out of this table: --seeds 0,1" in (
+    assert "other seeds (1) are kept in summary.json's partial_runs, out of this table: --seeds 0,1" in (
         capsys.readouterr().out
     )
     again = run_challenge(challenge, seeds=[0, 1], root=tmp_path)

@@ -258,6 +258,27 @@ def start_stage(task: StageTask) -> StageProcess:
     return StageProcess(process)
 
 
+@contextlib.contextmanager
+def _interrupt_deferred() -> Iterator[None]:
+    """
+    Ctrl-C (SIGINT) while the block runs acts once it is over, as it would have then (the main thread's handler,
+    ``KeyboardInterrupt`` by default): a stage process started in the block is registered before the runner stops.
+    Where Ctrl-C came in between, the stage was a child not yet registered, and the interpreter's exit waited for it
+    to end (``multiprocessing`` joins its children), for as long as the stage ran.
+    """
+    if threading.current_thread() is not threading.main_thread():  # only the main thread takes signals
+        yield
+        return
+    received: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if received and callable(previous):
+            previous(signal.SIGINT, None)
+
+
 def stop_stages(processes: Sequence[StageProcess]) -> None:
     """Stop stage processes: SIGTERM, then SIGKILL after :data:`STOP_GRACE_S`; they are reaped, none is left."""
     for process in processes:
@@ -391,7 +412,8 @@ def run_local(
                     break
                 if all(need in finished or need not in to_run for need in task.needs):
                     pending.remove(task)
-                    running[task.key] = (task, start_stage(task))
+                    with _interrupt_deferred():  # a stage started is a stage stopped: registered before Ctrl-C acts
+                        running[task.key] = (task, start_stage(task))
                     on_start(task)
             if not running:
                 if pending:

@@ -632,8 +632,8 @@ def run_challenge(
     if others:  # a run of some seeds: the others' finished runs are kept, out of this table and its statistics
         every = ",".join(map(str, sorted({*seeds, *others})))
         print(
-            f"Finished runs of other seeds ({', '.join(map(str, others))}) are recorded in summary.json (partial_runs), "
-            f"out of this table: --seeds {every} summarizes them all (their finished stages are not trained again)."
+            f"Finished runs of other seeds ({', '.join(map(str, others))}) are kept in summary.json's partial_runs, out "
+            f"of this table: --seeds {every} summarizes them all (their finished stages are not trained again)."
         )
     return summary
 
