@@ -329,7 +329,8 @@ def test_ctrl_c_at_a_terminal_records_no_stage_as_finished(tmp_path: Path, impor
     steps; stages leave it to their runner, which stops them: none is recorded, none is left.
     """
     stage_dir = tmp_path / "tiny" / "models" / "seed_0" / "slow"
-    code = (
+    code = (  # Ctrl-C handled as at a terminal (a runner started in the background of a script ignores it)
+        "import signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
         "from test_backends import ZooLike, tiny; from sb3_pilot.experiments.challenges import run_challenge; "
         f"run_challenge(tiny(ZooLike('slow', 300.0)), seeds=[0], root={str(tmp_path)!r})"
     )
@@ -365,11 +366,14 @@ def test_ctrl_c_as_a_stage_starts_stops_that_stage_too(
         return process
 
     monkeypatch.setattr(backends, "start_stage", start_then_ctrl_c)
+    # Ctrl-C handled as at a terminal (this process may have been started ignoring it: in the background of a script)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         with pytest.raises(KeyboardInterrupt):
             run_challenge(tiny(Sleep("slow", 300.0)), seeds=[0], root=tmp_path)
         assert started and _gone(started[0]), "the stage started as Ctrl-C came was left running"
     finally:
+        signal.signal(signal.SIGINT, previous)
         for pid in started:
             with contextlib.suppress(ProcessLookupError):
                 os.kill(pid, signal.SIGKILL)
