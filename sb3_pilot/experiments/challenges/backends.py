@@ -277,6 +277,8 @@ def _interrupt_deferred() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
         if received and callable(previous):
             previous(signal.SIGINT, None)
+        elif received and previous == signal.SIG_DFL:  # the signal's default action, now
+            os.kill(os.getpid(), signal.SIGINT)
 
 
 def stop_stages(processes: Sequence[StageProcess]) -> None:
