@@ -16,6 +16,7 @@ from sb3_pilot.experiments.statistics import (
     pointwise_iqm,
     run_scores,
     shared_sources,
+    signed_texts,
     summary_statistics,
     verdict,
 )
@@ -76,6 +77,14 @@ def test_verdict_wording() -> None:
     assert verdict(below, 5).startswith("worse than SAC+HER")
     assert verdict(below, 3) == "no gain shown: area gain -0.30 [-0.40, -0.20] below 0 on 3 seeds per method (5 needed)"
     assert verdict(above, 2).startswith("too few seeds (2)")
+
+
+def test_a_bound_near_zero_is_printed_with_its_sign() -> None:
+    # Fetch-Reach-Image's verdict run: an interval just above 0 must not read as touching it (+0.00)
+    assert verdict({"value": 0.0142, "ci": [0.0033, 0.0392]}, 5) == "confirmed: area gain +0.014 [+0.003, +0.039]"
+    assert verdict({"value": 0.0, "ci": [0.0, 0.0]}, 1).endswith("area gain +0.00 [+0.00, +0.00]")  # exact zeros
+    assert signed_texts(0.00004, -0.2) == ["+0.0000", "-0.2000"]  # at most 4 decimals
+    assert signed_texts(0.004, 0.2, digits=2, most=2) == ["+0.00", "+0.20"]
 
 
 def test_iqm_of_under_four_seeds_is_the_mean() -> None:

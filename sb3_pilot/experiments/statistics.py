@@ -235,6 +235,21 @@ def shared_sources(*sources: int | None) -> int | None:
     return min((count for count in sources if count), default=0)
 
 
+def signed_texts(*values: float, digits: int = 2, most: int = 4) -> list[str]:
+    """
+    Signed texts of ``values`` at a shared number of decimals: ``digits``, or more (up to ``most``) where a nonzero
+    value would read as +0.00 or -0.00 (a gain's interval just above 0 must not print as if it touched 0).
+
+    :param values: the numbers (e.g. a gain and its interval)
+    :param digits: the fewest decimals
+    :param most: the most decimals
+    :return: each value as ``+0.12`` / ``-0.003``
+    """
+    while digits < most and any(v != 0 and round(abs(v), digits) == 0 for v in values):
+        digits += 1
+    return [f"{v:+.{digits}f}" for v in values]
+
+
 def verdict(
     gain: dict[str, Any], seeds: int, subset: str | None = None, against: str | None = None, sources: int | None = 0
 ) -> str:
@@ -254,7 +269,8 @@ def verdict(
         reads one); fewer than :data:`CONFIRM_SEEDS`, or None (not recorded), make the verdict at most "a hint"
     """
     value, (low, high) = gain["value"], gain["ci"]
-    gain_text = f"area gain {value:+.2f} [{low:+.2f}, {high:+.2f}]"
+    value_text, low_text, high_text = signed_texts(value, low, high)
+    gain_text = f"area gain {value_text} [{low_text}, {high_text}]"
     interval = gain_text + (f" over {against}" if against else "")
     chosen = f", a subset chosen after the fact ({subset})" if subset else ""
     if seeds < MIN_SEEDS:
