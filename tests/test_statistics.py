@@ -10,13 +10,13 @@ from sb3_pilot.experiments.statistics import (
     MIN_SEEDS,
     aggregate_name,
     compare,
+    format_estimate,
     format_seeds,
     iqm,
     method_statistics,
     pointwise_iqm,
     run_scores,
     shared_sources,
-    signed_texts,
     summary_statistics,
     verdict,
 )
@@ -83,8 +83,8 @@ def test_a_bound_near_zero_is_printed_with_its_sign() -> None:
     # Fetch-Reach-Image's verdict run: an interval just above 0 must not read as touching it (+0.00)
     assert verdict({"value": 0.0142, "ci": [0.0033, 0.0392]}, 5) == "confirmed: area gain +0.014 [+0.003, +0.039]"
     assert verdict({"value": 0.0, "ci": [0.0, 0.0]}, 1).endswith("area gain +0.00 [+0.00, +0.00]")  # exact zeros
-    assert signed_texts(0.00004, -0.2) == ["+0.0000", "-0.2000"]  # at most 4 decimals
-    assert signed_texts(0.004, 0.2, digits=2, most=2) == ["+0.00", "+0.20"]
+    assert format_estimate({"value": 0.00004, "ci": [-0.2, 0.2]}, signed=True) == "+0.0000 [-0.2000, +0.2000]"  # at most 4
+    assert format_estimate({"value": 0.004, "ci": [0.0, 0.2]}) == "0.00 [0.00, 0.20]"  # a level: its fixed decimals
 
 
 def test_iqm_of_under_four_seeds_is_the_mean() -> None:

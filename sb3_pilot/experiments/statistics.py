@@ -56,6 +56,8 @@ MIN_SEEDS = 3
 CONFIRM_SEEDS = 5
 #: The fraction of runs the IQM cuts at each end (rliable's ``aggregate_iqm``: ``scipy.stats.trim_mean``).
 IQM_CUT = 0.25
+#: The most decimals of a signed estimate (a gain) whose nonzero numbers would otherwise print as 0.
+SIGNED_DIGITS = 4
 
 
 def aggregate_name(runs: int) -> str:
@@ -127,10 +129,20 @@ def first_steps(runs: Sequence[dict[str, Any]], last: int) -> list[dict[str, Any
     return cut
 
 
-def format_estimate(entry: dict[str, Any], digits: int = 2) -> str:
-    """``value [low, high]`` of a statistic (``{"value", "ci"}``)."""
-    low, high = entry["ci"]
-    return f"{entry['value']:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"
+def format_estimate(entry: dict[str, Any], digits: int = 2, signed: bool = False) -> str:
+    """
+    ``value [low, high]`` of a statistic.
+
+    :param entry: ``{"value", "ci"}``
+    :param digits: decimals
+    :param signed: a gain's form, ``+0.12 [+0.03, +0.20]``, with more decimals (up to :data:`SIGNED_DIGITS`) where
+        a nonzero number would read as +0.00 or -0.00: an interval just above 0 must not print as if it touched 0
+    """
+    values = [entry["value"], *entry["ci"]]
+    while signed and digits < SIGNED_DIGITS and any(v != 0 and round(abs(v), digits) == 0 for v in values):
+        digits += 1
+    value, low, high = (f"{v:{'+' if signed else ''}.{digits}f}" for v in values)
+    return f"{value} [{low}, {high}]"
 
 
 def _estimates(data: Any, func: Callable[..., np.ndarray], seed: int, reps: int) -> tuple[np.ndarray, np.ndarray]:
@@ -235,21 +247,6 @@ def shared_sources(*sources: int | None) -> int | None:
     return min((count for count in sources if count), default=0)
 
 
-def signed_texts(*values: float, digits: int = 2, most: int = 4) -> list[str]:
-    """
-    Signed texts of ``values`` at a shared number of decimals: ``digits``, or more (up to ``most``) where a nonzero
-    value would read as +0.00 or -0.00 (a gain's interval just above 0 must not print as if it touched 0).
-
-    :param values: the numbers (e.g. a gain and its interval)
-    :param digits: the fewest decimals
-    :param most: the most decimals
-    :return: each value as ``+0.12`` / ``-0.003``
-    """
-    while digits < most and any(v != 0 and round(abs(v), digits) == 0 for v in values):
-        digits += 1
-    return [f"{v:+.{digits}f}" for v in values]
-
-
 def verdict(
     gain: dict[str, Any], seeds: int, subset: str | None = None, against: str | None = None, sources: int | None = 0
 ) -> str:
@@ -269,8 +266,7 @@ def verdict(
         reads one); fewer than :data:`CONFIRM_SEEDS`, or None (not recorded), make the verdict at most "a hint"
     """
     value, (low, high) = gain["value"], gain["ci"]
-    value_text, low_text, high_text = signed_texts(value, low, high)
-    gain_text = f"area gain {value_text} [{low_text}, {high_text}]"
+    gain_text = f"area gain {format_estimate(gain, signed=True)}"
     interval = gain_text + (f" over {against}" if against else "")
     chosen = f", a subset chosen after the fact ({subset})" if subset else ""
     if seeds < MIN_SEEDS:
